@@ -1,0 +1,31 @@
+# The README's commands. `make test` works on a fresh machine with only Python 3.11 and make.
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: install test run bench lint lock
+
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade "pip>=24"
+	$(PY) -m pip install -q -c constraints.txt -e ".[all,test]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: install
+	$(PY) -m pytest -q
+
+run: install
+	$(PY) -m contextrl.demo
+
+bench: install
+	$(PY) benchmarks/bench_envs.py
+
+lint: install
+	$(VENV)/bin/ruff check src tests benchmarks examples
+	$(VENV)/bin/ruff format --check src tests benchmarks examples
+
+# Re-pin every installed distribution (run after changing dependencies in pyproject.toml).
+lock: install
+	$(PY) -m pip freeze --exclude-editable | grep -v '^-e' > constraints.txt

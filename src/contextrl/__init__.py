@@ -1,0 +1,56 @@
+"""contextrl: contextual reinforcement learning with explicit, named, bounded contexts.
+
+    import jax, contextrl as crl
+    env = crl.make("CartPole")
+    contexts = crl.sample(env, {"length": crl.Uniform(0.25, 0.75)}, n=4096, key=jax.random.key(0))
+    state, ts = jax.vmap(env.reset)(keys, contexts)
+"""
+
+from contextrl import envs as _envs  # noqa: F401  (registers the environments)
+from contextrl.context import (
+    Categorical,
+    Constant,
+    ContextError,
+    LogUniform,
+    Normal,
+    RelativeUniform,
+    Scaled,
+    Uniform,
+    context_type,
+    feature,
+    sample,
+)
+from contextrl.core import (
+    ContextualEnv,
+    Env,
+    TimeStep,
+    make,
+    register,
+    registered,
+    spec,
+    with_contexts,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Categorical",
+    "Constant",
+    "ContextError",
+    "ContextualEnv",
+    "Env",
+    "LogUniform",
+    "Normal",
+    "RelativeUniform",
+    "Scaled",
+    "TimeStep",
+    "Uniform",
+    "context_type",
+    "feature",
+    "make",
+    "register",
+    "registered",
+    "sample",
+    "spec",
+    "with_contexts",
+]

@@ -1,0 +1,299 @@
+"""Context features declared once, on the fields of a context dataclass.
+
+A context is a frozen dataclass whose fields are JAX arrays (scalars for one context, a leading batch
+axis for many). Each field carries a :class:`Feature` declaration: default, bounds, kind, unit, meaning,
+what it affects and the paper's aliases. Validation, sampling, docs tables, the CLI and the environment
+checker all read those declarations, so they can never disagree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+KINDS = ("float", "int", "categorical")
+EFFECTS = ("dynamics", "reward", "start_state", "goal", "observation")
+
+
+class ContextError(ValueError):
+    """Raised for any invalid context input: unknown feature, out-of-bounds value, NaN, wrong type."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Feature:
+    """The declaration of one context feature."""
+
+    name: str
+    default: float | int
+    lower: float
+    upper: float
+    kind: str = "float"
+    choices: tuple[str, ...] = ()
+    unit: str = ""
+    doc: str = ""
+    affects: tuple[str, ...] = ("dynamics",)
+    aliases: tuple[str, ...] = ()
+
+    @property
+    def dtype(self):
+        return jnp.float32 if self.kind == "float" else jnp.int32
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return (self.lower, self.upper)
+
+    def default_label(self) -> str:
+        return self.choices[int(self.default)] if self.kind == "categorical" else f"{self.default:g}"
+
+    def coerce(self, value: Any) -> np.ndarray:
+        """Turn a user value (number, choice name, array) into a checked NumPy array of this kind."""
+        if self.kind == "categorical" and isinstance(value, str):
+            if value not in self.choices:
+                raise ContextError(
+                    f"{self.name}: {value!r} is not a valid choice; choose one of {list(self.choices)}"
+                )
+            value = self.choices.index(value)
+        if isinstance(value, bool) or isinstance(value, np.bool_):
+            raise ContextError(f"{self.name}: expected a number, got a bool ({value!r})")
+        try:
+            array = np.asarray(value)
+        except Exception as error:  # pragma: no cover - numpy raises many types
+            raise ContextError(f"{self.name}: cannot read {value!r} as a number") from error
+        if array.dtype.kind not in "iuf":
+            raise ContextError(
+                f"{self.name}: expected a number, got {type(value).__name__} ({value!r})"
+            )
+        if array.ndim > 1:
+            raise ContextError(
+                f"{self.name}: expected a scalar or a 1-D batch, got shape {array.shape}"
+            )
+        if not np.all(np.isfinite(array)):
+            raise ContextError(f"{self.name}: value {value!r} is not finite (NaN or inf)")
+        if self.kind != "float" and not np.all(np.equal(np.round(array), array)):
+            raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
+        low, high = np.min(array), np.max(array)
+        if low < self.lower or high > self.upper:
+            bad = low if low < self.lower else high
+            raise ContextError(
+                f"{self.name}: value {bad:g} is outside its bounds [{self.lower:g}, {self.upper:g}]"
+            )
+        return array.astype(np.float32 if self.kind == "float" else np.int32)
+
+
+def feature(
+    default: float | int | str,
+    lower: float,
+    upper: float,
+    *,
+    kind: str = "float",
+    choices: tuple[str, ...] = (),
+    unit: str = "",
+    doc: str = "",
+    affects: tuple[str, ...] = ("dynamics",),
+    aliases: tuple[str, ...] = (),
+) -> Any:
+    """Declare a context feature as a dataclass field (see :func:`context_type`)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    unknown = set(affects) - set(EFFECTS)
+    if unknown or not affects:
+        raise ValueError(f"affects must be a non-empty subset of {EFFECTS}, got {affects!r}")
+    if kind == "categorical":
+        default = choices.index(default) if isinstance(default, str) else int(default)
+        lower, upper = 0, len(choices) - 1
+    if not (math.isfinite(lower) and math.isfinite(upper) and lower <= default <= upper):
+        raise ValueError(f"default {default!r} must lie inside finite bounds [{lower}, {upper}]")
+    spec = dict(
+        default=default,
+        lower=lower,
+        upper=upper,
+        kind=kind,
+        choices=tuple(choices),
+        unit=unit,
+        doc=doc,
+        affects=tuple(affects),
+        aliases=tuple(aliases),
+    )
+    return dataclasses.field(default=default, metadata={"feature": spec})
+
+
+def _is_concrete(value: Any) -> bool:
+    return not isinstance(value, jax.core.Tracer)
+
+
+class ContextBase:
+    """Methods shared by every context dataclass; the space is attached by :func:`context_type`."""
+
+    space: ClassVar[ContextSpace]
+
+    def replace(self, **values: Any):
+        """A copy with some features changed, validated against the declarations."""
+        return self.space.make(base=self, **values)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Feature name to value (arrays), in declaration order."""
+        return {name: getattr(self, name) for name in self.space.names}
+
+    def as_array(self) -> jax.Array:
+        return self.space.to_array(self)
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return jnp.shape(getattr(self, self.space.names[0]))
+
+    def __getitem__(self, index):
+        """Select contexts from a batch (``contexts[3]``, ``contexts[:8]``)."""
+        return jax.tree_util.tree_map(lambda leaf: leaf[index], self)
+
+    def __len__(self) -> int:
+        shape = self.batch_shape
+        if not shape:
+            raise TypeError("a single context has no length; only a batch of contexts does")
+        return shape[0]
+
+
+def context_type(cls):
+    """Class decorator for a ``ContextBase`` subclass: a frozen JAX pytree dataclass with its space."""
+    if not issubclass(cls, ContextBase):
+        raise TypeError(f"{cls.__name__} must subclass ContextBase")
+    data_cls = dataclasses.dataclass(frozen=True)(cls)
+    features = []
+    for field in dataclasses.fields(data_cls):
+        if "feature" not in field.metadata:
+            raise TypeError(f"{cls.__name__}.{field.name} must be declared with feature(...)")
+        features.append(Feature(name=field.name, **field.metadata["feature"]))
+    jax.tree_util.register_dataclass(
+        data_cls, data_fields=[f.name for f in features], meta_fields=[]
+    )
+    data_cls.space = ContextSpace(data_cls, tuple(features))
+    return data_cls
+
+
+class ContextSpace:
+    """Everything known about the contexts of one environment: names, bounds, validation, conversion."""
+
+    def __init__(self, context_class: type, features: tuple[Feature, ...]):
+        self.context_class = context_class
+        self.features: dict[str, Feature] = {f.name: f for f in features}
+        self.names: tuple[str, ...] = tuple(self.features)
+        self._aliases = {alias: f.name for f in features for alias in f.aliases}
+        self.lower = np.array([f.lower for f in features], dtype=np.float32)
+        self.upper = np.array([f.upper for f in features], dtype=np.float32)
+
+    def __repr__(self) -> str:
+        return f"ContextSpace({self.context_class.__name__}, features={list(self.names)})"
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def resolve(self, name: str) -> str:
+        """The canonical feature name for a name or a paper alias; clear error otherwise."""
+        if name in self.features:
+            return name
+        if name in self._aliases:
+            return self._aliases[name]
+        aliases = f" (aliases: {sorted(self._aliases)})" if self._aliases else ""
+        raise ContextError(
+            f"unknown context feature {name!r} for {self.context_class.__name__}; "
+            f"valid features: {list(self.names)}{aliases}"
+        )
+
+    def default(self):
+        """The default context: the original environment."""
+        return self.context_class(
+            **{n: jnp.asarray(f.default, dtype=f.dtype) for n, f in self.features.items()}
+        )
+
+    def make(self, base=None, **values: Any):
+        """A validated context from feature values (names or aliases); the rest from ``base`` or defaults.
+
+        Every value is checked before anything is built, so a bad call changes nothing.
+        """
+        checked = {}
+        for name, value in values.items():
+            canonical = self.resolve(name)
+            if canonical in checked:
+                raise ContextError(f"{canonical} given twice (once through an alias)")
+            if _is_concrete(value):
+                value = jnp.asarray(self.features[canonical].coerce(value))
+            checked[canonical] = value
+        batch_shapes = {jnp.shape(v) for v in checked.values()}
+        if len(batch_shapes) > 1:
+            raise ContextError(f"features have different batch shapes: {sorted(batch_shapes)}")
+        base = self.default() if base is None else base
+        return dataclasses.replace(base, **checked)
+
+    def from_dict(self, values: Mapping[str, Any]):
+        return self.make(**dict(values))
+
+    def check(self, context) -> None:
+        """Validate every feature of a (possibly batched) concrete context; raise ContextError."""
+        if not isinstance(context, self.context_class):
+            raise ContextError(
+                f"expected a {self.context_class.__name__}, got {type(context).__name__}"
+            )
+        for name, f in self.features.items():
+            value = getattr(context, name)
+            if _is_concrete(value):
+                f.coerce(np.asarray(value))
+
+    def to_array(self, context) -> jax.Array:
+        """Features stacked on the last axis as float32, in declaration order."""
+        return jnp.stack(
+            [jnp.asarray(getattr(context, n), jnp.float32) for n in self.names], axis=-1
+        )
+
+    def from_array(self, array) -> Any:
+        """Inverse of :meth:`to_array` (values are not re-validated; use :meth:`check`)."""
+        array = jnp.asarray(array)
+        if array.shape[-1:] != (len(self.names),):
+            raise ContextError(
+                f"expected an array whose last axis has {len(self.names)} entries "
+                f"({list(self.names)}), got shape {array.shape}"
+            )
+        return self.context_class(
+            **{
+                n: array[..., i].astype(f.dtype)
+                for i, (n, f) in enumerate(self.features.items())
+            }
+        )
+
+    def to_dict(self, context) -> dict[str, Any]:
+        """Plain Python values (lists for batches); categorical features as their choice names."""
+        out = {}
+        for name, f in self.features.items():
+            value = np.asarray(getattr(context, name))
+            if f.kind == "categorical":
+                out[name] = (
+                    f.choices[int(value)]
+                    if value.ndim == 0
+                    else [f.choices[int(v)] for v in value]
+                )
+            else:
+                out[name] = value.item() if value.ndim == 0 else value.tolist()
+        return out
+
+    def to_gymnasium(self):
+        """A gymnasium Box holding every context as a float32 vector in declaration order."""
+        import gymnasium
+
+        return gymnasium.spaces.Box(self.lower, self.upper, dtype=np.float32)
+
+    def stack(self, contexts) -> Any:
+        """One batched context from a sequence of single contexts."""
+        contexts = list(contexts)
+        if not contexts:
+            raise ContextError("cannot stack an empty list of contexts")
+        return jax.tree_util.tree_map(lambda *leaves: jnp.stack(leaves), *contexts)
+
+    def varying(self, contexts) -> tuple[str, ...]:
+        """Names of the features whose value differs somewhere in a batch of contexts."""
+        return tuple(
+            n for n in self.names if np.unique(np.asarray(getattr(contexts, n))).size > 1
+        )

@@ -1,0 +1,26 @@
+"""The environment core: Env, TimeStep, spaces, the registry and context-scheduled environments."""
+
+from contextrl.core.contextual import ContextualEnv, ContextualState, make_provider, with_contexts
+from contextrl.core.env import Env, EnvState, TimeStep, tree_where
+from contextrl.core.host import HostEnv
+from contextrl.core.registry import EnvSpec, make, register, registered, spec
+from contextrl.core.spaces import Box, Discrete
+
+__all__ = [
+    "Box",
+    "ContextualEnv",
+    "ContextualState",
+    "Discrete",
+    "Env",
+    "EnvSpec",
+    "EnvState",
+    "HostEnv",
+    "TimeStep",
+    "make",
+    "make_provider",
+    "register",
+    "registered",
+    "spec",
+    "tree_where",
+    "with_contexts",
+]

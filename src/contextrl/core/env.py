@@ -1,0 +1,195 @@
+"""The environment core: pure ``reset``/``step`` functions of an explicit context.
+
+An environment writes four unbatched pieces (``init``, ``transition``, ``observe`` and its spaces); this
+base class adds what every environment shares, once: the step counter and time limit (a truncation), the
+same-step auto-reset that keeps the last observation in ``final_obs``, and the context observation. Nothing
+here is jitted: callers compile once, at the edge (``jax.jit(jax.vmap(env.step))``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from contextrl.context.features import ContextError
+from contextrl.context.observation import ContextObservation
+from contextrl.core.spaces import Box, Discrete
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class TimeStep:
+    """What one reset or step returns. A dataclass, not a tuple, so fields can be added later.
+
+    When an episode ends (``terminated`` or ``truncated``), ``obs`` is already the first observation of
+    the next episode and ``final_obs`` the last one of the episode that ended; otherwise they are equal.
+    ``reward``, ``terminated`` and ``truncated`` belong to the step just taken.
+    """
+
+    obs: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    final_obs: jax.Array
+    info: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def done(self) -> jax.Array:
+        return self.terminated | self.truncated
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class EnvState:
+    """The environment's own state (``physics``) and the number of steps taken in this episode."""
+
+    physics: Any
+    time: jax.Array
+
+
+def tree_where(condition, on_true, on_false):
+    """Pick whole pytrees by a scalar condition (under ``vmap``, per copy)."""
+    return jax.tree_util.tree_map(lambda a, b: jnp.where(condition, a, b), on_true, on_false)
+
+
+@dataclasses.dataclass(frozen=True)
+class Env:
+    """Base of every JAX environment: static configuration only, pure functions of (key, state, context).
+
+    ``max_steps`` is the time limit (None: the original environment's); ``obs_context`` says which
+    context features are appended to the observation (default: none, the original observation).
+    """
+
+    max_steps: int | None = None
+    obs_context: ContextObservation = ContextObservation()
+
+    context_type: ClassVar[type]
+    default_max_steps: ClassVar[int]
+    # True when ``transition`` draws random numbers; otherwise the step key goes to the reset unsplit.
+    stochastic_transition: ClassVar[bool] = False
+
+    def __post_init__(self):
+        if self.max_steps is None:
+            object.__setattr__(self, "max_steps", self.default_max_steps)
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        if self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        for name in self.obs_context.features:
+            self.context_space.resolve(name)
+
+    # ---- written by each environment -------------------------------------------------------------
+    def init(self, key, context) -> Any:
+        """A start state drawn for ``context``."""
+        raise NotImplementedError
+
+    def transition(self, key, state, action, context) -> tuple[Any, jax.Array, jax.Array]:
+        """``(next_state, reward, terminated)`` for one action."""
+        raise NotImplementedError
+
+    def observe(self, state, context) -> jax.Array:
+        """The original environment's observation of ``state``."""
+        raise NotImplementedError
+
+    @property
+    def action_space(self) -> Discrete | Box:
+        raise NotImplementedError
+
+    @property
+    def base_observation_space(self) -> Box:
+        """The original observation's space, wide enough for every context inside the bounds."""
+        raise NotImplementedError
+
+    # ---- provided ------------------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return type(self).__name__
+
+    @property
+    def context_space(self):
+        return self.context_type.space
+
+    def default_context(self):
+        """The context that reproduces the original environment."""
+        return self.context_space.default()
+
+    def context(self, **values):
+        """A validated context: the given features (names or paper aliases), defaults for the rest."""
+        return self.context_space.make(**values)
+
+    @property
+    def observation_space(self) -> Box:
+        base = self.base_observation_space
+        if self.obs_context.hidden:
+            return base
+        low, high = self.obs_context.bounds(self.context_space)
+        return Box(np.concatenate([base.low, low]), np.concatenate([base.high, high]))
+
+    def with_obs_context(self, features=None, *, contexts=None, normalize=False, noise=0.0) -> Env:
+        """A copy that appends context features to the observation (None, "all", "varying", names)."""
+        obs_context = ContextObservation.build(
+            self.context_space, features, contexts=contexts, normalize=normalize, noise=noise
+        )
+        return dataclasses.replace(self, obs_context=obs_context)
+
+    def _observation(self, state, context, key) -> jax.Array:
+        obs = self.observe(state, context)
+        if self.obs_context.hidden:
+            return obs
+        extra = self.obs_context.values(self.context_space, context, key)
+        return jnp.concatenate([obs, extra])
+
+    def _keys(self, key, count: int):
+        return jax.random.split(key, count) if count > 1 else [key]
+
+    def reset(self, key, context) -> tuple[EnvState, TimeStep]:
+        """Start an episode under ``context``."""
+        init_key, obs_key = self._keys(key, 2) if self.obs_context.noise > 0 else (key, None)
+        physics = self.init(init_key, context)
+        obs = self._observation(physics, context, obs_key)
+        zero = jnp.zeros((), jnp.float32)
+        false = jnp.zeros((), bool)
+        return EnvState(physics, jnp.zeros((), jnp.int32)), TimeStep(obs, zero, false, false, obs)
+
+    def step(self, key, state: EnvState, action, context) -> tuple[EnvState, TimeStep]:
+        """One step; if the episode ends, the same call resets it under the same context."""
+        return self.step_then_reset(key, state, action, context, context)
+
+    def step_then_reset(
+        self, key, state: EnvState, action, context, reset_context
+    ) -> tuple[EnvState, TimeStep]:
+        """One step under ``context``; an episode that ends restarts under ``reset_context``."""
+        noisy = self.obs_context.noise > 0
+        count = (2 if self.stochastic_transition else 1) + (2 if noisy else 0)
+        keys = list(self._keys(key, count))
+        transition_key = keys.pop() if self.stochastic_transition else key
+        reset_key = keys.pop() if self.stochastic_transition else key
+        final_obs_key, reset_obs_key = (keys.pop(), keys.pop()) if noisy else (None, None)
+
+        physics, reward, terminated = self.transition(transition_key, state.physics, action, context)
+        time = state.time + 1
+        truncated = time >= self.max_steps
+        final_obs = self._observation(physics, context, final_obs_key)
+
+        done = terminated | truncated
+        reset_physics = self.init(reset_key, reset_context)
+        reset_obs = self._observation(reset_physics, reset_context, reset_obs_key)
+        next_state = EnvState(
+            tree_where(done, reset_physics, physics), jnp.where(done, 0, time).astype(jnp.int32)
+        )
+        obs = jnp.where(done, reset_obs, final_obs)
+        return next_state, TimeStep(
+            obs, jnp.asarray(reward, jnp.float32), jnp.asarray(terminated, bool), truncated, final_obs
+        )
+
+    def check_context(self, context) -> None:
+        """Raise ContextError unless ``context`` is a valid context of this environment."""
+        if not isinstance(context, self.context_type):
+            raise ContextError(
+                f"{self.name} expects a {self.context_type.__name__}, got {type(context).__name__}"
+            )
+        self.context_space.check(context)

@@ -1,0 +1,81 @@
+"""The environment registry: ``crl.make(id)`` for every family, CARL's ids as aliases."""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+from collections.abc import Callable, Sequence
+from typing import Any
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvSpec:
+    """A registered environment: its id, family, how to build it, and other names it answers to."""
+
+    id: str
+    family: str
+    factory: Callable[..., Any]
+    aliases: tuple[str, ...] = ()
+    host: bool = False  # True for environments stepped on the CPU outside JAX (Box2D, MuJoCo, …)
+
+
+_REGISTRY: dict[str, EnvSpec] = {}
+_ALIASES: dict[str, str] = {}
+
+
+def register(
+    id: str,
+    factory: Callable[..., Any],
+    *,
+    family: str,
+    aliases: Sequence[str] = (),
+    host: bool = False,
+) -> None:
+    """Add an environment; ids and aliases must be unique."""
+    for name in (id, *aliases):
+        if name in _REGISTRY or name in _ALIASES:
+            raise ValueError(f"environment id {name!r} is already registered")
+    _REGISTRY[id] = EnvSpec(id, family, factory, tuple(aliases), host)
+    for alias in aliases:
+        _ALIASES[alias] = id
+
+
+def spec(id: str) -> EnvSpec:
+    """The registered spec for an id or alias, or a clear error listing the valid ids."""
+    canonical = _ALIASES.get(id, id)
+    if canonical not in _REGISTRY:
+        close = difflib.get_close_matches(id, [*_REGISTRY, *_ALIASES], n=3)
+        hint = f" Did you mean {close}?" if close else ""
+        raise KeyError(f"unknown environment {id!r}.{hint} Registered: {sorted(_REGISTRY)}")
+    return _REGISTRY[canonical]
+
+
+def registered(family: str | None = None) -> list[str]:
+    """Registered ids (not aliases), optionally of one family, sorted."""
+    return sorted(i for i, s in _REGISTRY.items() if family is None or s.family == family)
+
+
+def make(
+    id: str,
+    *,
+    obs_context_features: None | str | Sequence[str] = None,
+    obs_context_normalize: bool = False,
+    obs_context_noise: float = 0.0,
+    contexts: Any = None,
+    **kwargs: Any,
+):
+    """Build a registered environment.
+
+    ``obs_context_features`` appends context features to the observation: None (hidden, the original
+    observation), "all", "varying" (needs ``contexts``, the features that differ across that set), or a
+    list of names. Other keyword arguments (``max_steps``, family options) go to the constructor.
+    """
+    env = spec(id).factory(**kwargs)
+    if obs_context_features is not None or obs_context_noise or obs_context_normalize:
+        env = env.with_obs_context(
+            obs_context_features,
+            contexts=contexts,
+            normalize=obs_context_normalize,
+            noise=obs_context_noise,
+        )
+    return env
