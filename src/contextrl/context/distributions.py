@@ -110,7 +110,9 @@ class Normal:
         low, high = self._range(feature)
         _finite("Normal", low=low, high=high)
         if low > high:
-            raise ContextError(f"{feature.name}: Normal truncation range [{low:g}, {high:g}] is empty")
+            raise ContextError(
+                f"{feature.name}: Normal truncation range [{low:g}, {high:g}] is empty"
+            )
         _inside(feature, low, high, "Normal (truncated)")
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:
@@ -202,7 +204,9 @@ class RelativeUniform:
 
     def check(self, feature: Feature) -> None:
         if self.a > self.b:
-            raise ContextError(f"{feature.name}: RelativeUniform is empty (a {self.a:g} > b {self.b:g})")
+            raise ContextError(
+                f"{feature.name}: RelativeUniform is empty (a {self.a:g} > b {self.b:g})"
+            )
         self._absolute(feature).check(feature)
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:

@@ -49,7 +49,9 @@ class Feature:
         return (self.lower, self.upper)
 
     def default_label(self) -> str:
-        return self.choices[int(self.default)] if self.kind == "categorical" else f"{self.default:g}"
+        return (
+            self.choices[int(self.default)] if self.kind == "categorical" else f"{self.default:g}"
+        )
 
     def coerce(self, value: Any) -> np.ndarray:
         """Turn a user value (number, choice name, array) into a checked NumPy array of this kind."""
@@ -258,10 +260,7 @@ class ContextSpace:
                 f"({list(self.names)}), got shape {array.shape}"
             )
         return self.context_class(
-            **{
-                n: array[..., i].astype(f.dtype)
-                for i, (n, f) in enumerate(self.features.items())
-            }
+            **{n: array[..., i].astype(f.dtype) for i, (n, f) in enumerate(self.features.items())}
         )
 
     def to_dict(self, context) -> dict[str, Any]:
@@ -271,9 +270,7 @@ class ContextSpace:
             value = np.asarray(getattr(context, name))
             if f.kind == "categorical":
                 out[name] = (
-                    f.choices[int(value)]
-                    if value.ndim == 0
-                    else [f.choices[int(v)] for v in value]
+                    f.choices[int(value)] if value.ndim == 0 else [f.choices[int(v)] for v in value]
                 )
             else:
                 out[name] = value.item() if value.ndim == 0 else value.tolist()
@@ -294,6 +291,4 @@ class ContextSpace:
 
     def varying(self, contexts) -> tuple[str, ...]:
         """Names of the features whose value differs somewhere in a batch of contexts."""
-        return tuple(
-            n for n in self.names if np.unique(np.asarray(getattr(contexts, n))).size > 1
-        )
+        return tuple(n for n in self.names if np.unique(np.asarray(getattr(contexts, n))).size > 1)

@@ -41,7 +41,11 @@ class ContextObservation:
         noise: float = 0.0,
     ) -> ContextObservation:
         """Resolve a user choice (None, "all", "varying", or names) against a context space."""
-        if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not math.isfinite(noise):
+        if (
+            isinstance(noise, bool)
+            or not isinstance(noise, (int, float))
+            or not math.isfinite(noise)
+        ):
             raise ContextError(f"context observation noise must be a finite number, got {noise!r}")
         if noise < 0:
             raise ContextError(f"context observation noise must be >= 0, got {noise!r}")
@@ -51,7 +55,9 @@ class ContextObservation:
             names = space.names
         elif features == "varying":
             if contexts is None:
-                raise ContextError('obs_context_features="varying" needs the context set (contexts=...)')
+                raise ContextError(
+                    'obs_context_features="varying" needs the context set (contexts=...)'
+                )
             names = space.varying(contexts)
         elif isinstance(features, str):
             raise ContextError(

@@ -63,7 +63,9 @@ def make_selector(selector: str | Callable | Any) -> Callable:
     if isinstance(selector, str):
         named = {"round_robin": RoundRobin(), "random": RandomSelector(), "static": Static()}
         if selector not in named:
-            raise ContextError(f"unknown context selector {selector!r}; choose one of {list(SELECTORS)}")
+            raise ContextError(
+                f"unknown context selector {selector!r}; choose one of {list(SELECTORS)}"
+            )
         return named[selector]
     if callable(selector):
         return Custom(selector)

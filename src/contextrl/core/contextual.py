@@ -107,6 +107,8 @@ def make_provider(env: Env, contexts: Any, selector: str | Callable = "round_rob
     )
 
 
-def with_contexts(env: Env, contexts: Any, selector: str | Callable = "round_robin") -> ContextualEnv:
+def with_contexts(
+    env: Env, contexts: Any, selector: str | Callable = "round_robin"
+) -> ContextualEnv:
     """``env`` whose every episode takes its context from ``contexts`` (see :func:`make_provider`)."""
     return ContextualEnv(env, make_provider(env, contexts, selector))

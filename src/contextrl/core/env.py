@@ -170,7 +170,9 @@ class Env:
         reset_key = keys.pop() if self.stochastic_transition else key
         final_obs_key, reset_obs_key = (keys.pop(), keys.pop()) if noisy else (None, None)
 
-        physics, reward, terminated = self.transition(transition_key, state.physics, action, context)
+        physics, reward, terminated = self.transition(
+            transition_key, state.physics, action, context
+        )
         time = state.time + 1
         truncated = time >= self.max_steps
         final_obs = self._observation(physics, context, final_obs_key)
@@ -183,7 +185,11 @@ class Env:
         )
         obs = jnp.where(done, reset_obs, final_obs)
         return next_state, TimeStep(
-            obs, jnp.asarray(reward, jnp.float32), jnp.asarray(terminated, bool), truncated, final_obs
+            obs,
+            jnp.asarray(reward, jnp.float32),
+            jnp.asarray(terminated, bool),
+            truncated,
+            final_obs,
         )
 
     def check_context(self, context) -> None:

@@ -3,4 +3,11 @@
 from contextrl.core.registry import register
 from contextrl.envs import classic_control
 
-register("CartPole", classic_control.CartPole, family="classic_control", aliases=("CARLCartPole",))
+for _env in (
+    classic_control.CartPole,
+    classic_control.Pendulum,
+    classic_control.MountainCar,
+    classic_control.MountainCarContinuous,
+    classic_control.Acrobot,
+):
+    register(_env.__name__, _env, family="classic_control", aliases=(f"CARL{_env.__name__}",))

@@ -26,7 +26,9 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 class CartPoleContext(ContextBase):
     """Context features of CartPole."""
 
-    gravity: float = feature(9.8, 0.1, 100.0, unit="m/s²", doc="gravitational acceleration, downward")
+    gravity: float = feature(
+        9.8, 0.1, 100.0, unit="m/s²", doc="gravitational acceleration, downward"
+    )
     masscart: float = feature(1.0, 0.1, 10.0, unit="kg", doc="mass of the cart")
     masspole: float = feature(0.1, 0.01, 1.0, unit="kg", doc="mass of the pole")
     length: float = feature(
@@ -39,11 +41,17 @@ class CartPoleContext(ContextBase):
         0.02, 0.002, 0.2, unit="s", doc="Euler time step", aliases=("update_interval",)
     )
     initial_state_lower: float = feature(
-        -0.05, -0.2, 0.0, doc="lower end of the uniform start state (all four variables)",
+        -0.05,
+        -0.2,
+        0.0,
+        doc="lower end of the uniform start state (all four variables)",
         affects=("start_state",),
     )
     initial_state_upper: float = feature(
-        0.05, 0.0, 0.2, doc="upper end of the uniform start state (all four variables)",
+        0.05,
+        0.0,
+        0.2,
+        doc="upper end of the uniform start state (all four variables)",
         affects=("start_state",),
     )
 
@@ -83,7 +91,12 @@ class CartPole(Env):
         x_acc = temp - polemass_length * theta_acc * cos_theta / total_mass
         tau = context.tau
         next_state = jnp.stack(
-            [x + tau * x_dot, x_dot + tau * x_acc, theta + tau * theta_dot, theta_dot + tau * theta_acc]
+            [
+                x + tau * x_dot,
+                x_dot + tau * x_acc,
+                theta + tau * theta_dot,
+                theta_dot + tau * theta_acc,
+            ]
         )
         x, theta = next_state[0], next_state[2]
         terminated = (jnp.abs(x) > X_THRESHOLD) | (jnp.abs(theta) > THETA_THRESHOLD)
