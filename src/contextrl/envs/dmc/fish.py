@@ -1,0 +1,38 @@
+"""Fish (dm_control ``fish-swim`` by default): a fish swimming in a dense medium towards a target.
+
+The stock model disables gravity and every constraint (no contacts, no limits) and sets the medium
+density to 5000 kg/m³. Left out: friction (no contacts). ``gravity`` defaults to 0 (the stock
+disabled state); a positive value enables it and the fish sinks. ``wind_*`` is a current of the
+medium, bounded to ±0.5 m/s because this 30-gram fish is swept away (and the simulation diverges)
+by stronger ones.
+"""
+
+from __future__ import annotations
+
+from contextrl.context.features import ContextBase, context_type
+from contextrl.envs.dmc import base
+
+
+@context_type
+class DmcFishContext(ContextBase):
+    """Context features of the dm_control Fish; the defaults are the stock model."""
+
+    gravity: float = base.gravity_feature(0.0)
+    timestep: float = base.timestep_feature(0.004)
+    joint_damping: float = base.joint_damping_feature()
+    joint_stiffness: float = base.joint_stiffness_feature()
+    actuator_strength: float = base.actuator_strength_feature()
+    geom_density: float = base.geom_density_feature()
+    density: float = base.density_feature(5000.0)
+    viscosity: float = base.viscosity_feature()
+    wind_x: float = base.wind_feature("x", 0.5)
+    wind_y: float = base.wind_feature("y", 0.5)
+    wind_z: float = base.wind_feature("z", 0.5)
+
+
+class DmcFish(base.DmcEnv):
+    """Fish on MuJoCo; tasks ``upright`` and ``swim`` (default); 1000 control steps of 40 ms."""
+
+    domain = "fish"
+    default_task = "swim"
+    context_type = DmcFishContext
