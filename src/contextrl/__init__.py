@@ -30,6 +30,9 @@ from contextrl.core import (
     spec,
     with_contexts,
 )
+from contextrl.gymnasium import register_envs as _register_gymnasium_ids
+
+_register_gymnasium_ids()  # every id above, also as gymnasium's contextrl/<Id>-v0
 
 __version__ = "0.1.0"
 

@@ -1,0 +1,258 @@
+"""How the single gymnasium environment steps: a compiled JAX environment or a host simulator.
+
+Both backends answer the same three calls (``start`` an episode under a chosen context, ``advance`` one
+action, draw a ``frame``), so the adapter above them owns everything else once: context sets and
+selectors, observation modes, seeding and gymnasium's API.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import operator
+from typing import Any
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+from contextrl.context.observation import ContextObservation
+from contextrl.core.env import Env
+from contextrl.core.host import HostEnv
+from contextrl.gymnasium.packing import Packer
+from contextrl.gymnasium.schedule import ContextSchedule
+
+KEY_WORDS = 2  # uint32 words of a threefry key
+
+
+def _float_bits(x: jax.Array) -> jax.Array:
+    return lax.bitcast_convert_type(jnp.asarray(x, jnp.float32), jnp.uint32).ravel()
+
+
+def _bits_float(bits: jax.Array) -> jax.Array:
+    return lax.bitcast_convert_type(bits, jnp.float32)
+
+
+def episode_keys(key_bits: jax.Array, episode: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """(selection key, environment key) of one episode, from the seed's key and the episode index."""
+    key = jax.random.fold_in(jax.random.wrap_key_data(key_bits), episode)
+    select_key, env_key = jax.random.split(key)
+    return select_key, env_key
+
+
+def advance(env: Env, key, state, action, context):
+    """One step without the automatic reset: a gymnasium single env resets only when asked.
+
+    This is ``Env.step_then_reset`` minus the reset, which would cost as much again as the step itself
+    and whose result the caller throws away. Keys are split only when something random needs them.
+    """
+    noisy = env.obs_context.noise > 0
+    transition_key, obs_key = (
+        jax.random.split(jax.random.fold_in(key, state.time))
+        if env.stochastic_transition or noisy
+        else (None, None)
+    )
+    physics, reward, terminated = env.transition(transition_key, state.physics, action, context)
+    time = state.time + 1
+    obs = env._observation(physics, context, obs_key)
+    next_state = dataclasses.replace(state, physics=physics, time=time)
+    return next_state, obs, reward, terminated, time >= env.max_steps
+
+
+class JaxBackend:
+    """A JAX ``Env`` behind two compiled functions (start, advance), each one vector in, one out."""
+
+    def __init__(self, env: Env, schedule: ContextSchedule):
+        self.env = env
+        self.schedule = schedule
+        self.space = env.context_space
+        self.action_space = env.action_space.to_gymnasium()
+        self.flat_space = env.observation_space.to_gymnasium()
+        self.base_size = int(np.prod(env.base_observation_space.shape))
+        self.obs_size = int(np.prod(env.observation_space.shape))
+        key = jax.random.key(0)
+        state_shape = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
+        example = (state_shape, jax.random.key_data(key), env.default_context())
+        self.packer = Packer(example)
+        self.carry: np.ndarray | None = None
+        self._discrete = isinstance(self.action_space, gymnasium.spaces.Discrete)
+        self._start = jax.jit(self._start_fn)
+        self._start_with = jax.jit(self._start_with_fn)
+        self._step = jax.jit(self._step_fn)
+        self._buffer = np.zeros(self.packer.size + self._action_words(), np.uint32)
+
+    def _action_words(self) -> int:
+        return 1 if self._discrete else int(np.prod(self.action_space.shape))
+
+    # ---- compiled pieces ----------------------------------------------------------------------------
+    def _begin(self, env_key, context_vector, index):
+        reset_key, step_key = jax.random.split(env_key)
+        context = self.space.from_array(context_vector)
+        state, timestep = self.env.reset(reset_key, context)
+        carry = self.packer.pack((state, jax.random.key_data(step_key), context))
+        return jnp.concatenate(
+            [
+                carry,
+                _float_bits(timestep.obs),
+                _float_bits(context_vector),
+                lax.bitcast_convert_type(jnp.asarray(index, jnp.int32), jnp.uint32)[None],
+            ]
+        )
+
+    def _start_fn(self, words):
+        episode = words[KEY_WORDS].astype(jnp.int32)
+        select_key, env_key = episode_keys(words[:KEY_WORDS], episode)
+        context_vector, index = self.schedule.choose(select_key, episode)
+        return self._begin(env_key, context_vector, index)
+
+    def _start_with_fn(self, words):
+        _, env_key = episode_keys(words[:KEY_WORDS], words[KEY_WORDS])
+        context_vector = _bits_float(words[KEY_WORDS + 1 :])
+        return self._begin(env_key, context_vector, jnp.int32(-1))
+
+    def _step_fn(self, words):
+        size = self.packer.size
+        state, key_bits, context = self.packer.unpack(words[:size])
+        if self._discrete:
+            action = lax.bitcast_convert_type(words[size], jnp.int32)
+        else:
+            action = _bits_float(words[size:]).reshape(self.action_space.shape)
+        key = jax.random.wrap_key_data(key_bits)
+        state, obs, reward, terminated, truncated = advance(self.env, key, state, action, context)
+        flags = jnp.stack([terminated, truncated]).astype(jnp.uint32)
+        carry = self.packer.pack((state, key_bits, context))
+        return jnp.concatenate([carry, _float_bits(obs), _float_bits(reward), flags])
+
+    # ---- host side ------------------------------------------------------------------------------------
+    def _unpack_start(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        size, features = self.packer.size, len(self.space)
+        self.carry = out[:size]
+        obs = out[size : size + self.obs_size].view(np.float32).copy()
+        context_start = size + self.obs_size
+        context_vector = out[context_start : context_start + features].view(np.float32).copy()
+        return obs, context_vector, int(out[-1].view(np.int32))
+
+    def start(
+        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Begin an episode: (observation, context vector, set index or -1)."""
+        head = np.concatenate([key_bits, np.array([episode], np.uint32)])
+        if context is None:
+            return self._unpack_start(np.asarray(self._start(head)))
+        words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
+        return self._unpack_start(np.asarray(self._start_with(words)))
+
+    def action_words(self, action: Any) -> np.ndarray:
+        if self._discrete:
+            try:
+                index = operator.index(action)
+            except TypeError:
+                index = None
+            if index is None or not 0 <= index < self.action_space.n:
+                raise ValueError(
+                    f"action must be an integer in [0, {self.action_space.n}), got {action!r}"
+                )
+            return np.array([index], np.uint32)
+        values = np.asarray(action, np.float32)
+        if values.shape != self.action_space.shape or not np.all(np.isfinite(values)):
+            raise ValueError(
+                f"action must be a finite float array of shape {self.action_space.shape}, "
+                f"got {action!r}"
+            )
+        return values.ravel().view(np.uint32)
+
+    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
+        size = self.packer.size
+        buffer = self._buffer
+        buffer[:size] = self.carry
+        buffer[size:] = self.action_words(action)
+        out = np.asarray(self._step(buffer))
+        self.carry = out[:size]
+        tail = out[size:]
+        obs = tail[: self.obs_size].view(np.float32).copy()
+        reward = float(tail[self.obs_size : self.obs_size + 1].view(np.float32)[0])
+        return obs, reward, bool(tail[-2]), bool(tail[-1])
+
+    def physics_and_context(self) -> tuple[Any, Any]:
+        """The current physics state and context as NumPy values (for rendering)."""
+        state, _, context = self.packer.unpack_host(self.carry)
+        return state.physics, context
+
+    def close(self) -> None:
+        """Nothing to release: the compiled functions are freed with the object."""
+
+
+class HostBackend:
+    """A ``HostEnv`` simulator; the adapter adds the time limit and the context observation."""
+
+    def __init__(
+        self,
+        env: HostEnv,
+        schedule: ContextSchedule,
+        obs_context: ContextObservation,
+        max_steps: int,
+    ):
+        self.env = env
+        self.schedule = schedule
+        self.space = env.context_space
+        self.obs_context = obs_context
+        self.max_steps = max_steps
+        self.action_space = env.action_space
+        base = env.base_observation_space
+        self.base_size = int(np.prod(base.shape))
+        low, high = obs_context.bounds(self.space) if not obs_context.hidden else ([], [])
+        self.flat_space = gymnasium.spaces.Box(
+            np.concatenate([np.ravel(base.low), low]).astype(np.float32),
+            np.concatenate([np.ravel(base.high), high]).astype(np.float32),
+            dtype=np.float32,
+        )
+        self.obs_size = self.flat_space.shape[0]
+        self._choose = jax.jit(self._choose_fn)
+        self._values = jax.jit(lambda context, key: obs_context.values(self.space, context, key))
+        self.time = 0
+        self.context = None
+        self._episode_key = None
+        self._fixed_extra: np.ndarray | None = None
+
+    def _choose_fn(self, key_bits, episode):
+        select_key, env_key = episode_keys(key_bits, episode)
+        context_vector, index = self.schedule.choose(select_key, episode)
+        return context_vector, index, jax.random.key_data(env_key)
+
+    def _observation(self, base_obs) -> np.ndarray:
+        base_obs = np.asarray(base_obs, np.float32).ravel()
+        if self.obs_context.hidden:
+            return base_obs
+        if self._fixed_extra is not None:
+            extra = self._fixed_extra
+        else:
+            key = jax.random.fold_in(self._episode_key, self.time)
+            extra = np.asarray(self._values(self.context, key))
+        return np.concatenate([base_obs, extra])
+
+    def start(
+        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        chosen, index, env_key_bits = self._choose(key_bits, np.int32(episode))
+        context_vector = np.asarray(chosen if context is None else context, np.float32)
+        index = -1 if context is not None else int(index)
+        self.context = self.space.from_array(context_vector)
+        self._episode_key = jax.random.wrap_key_data(env_key_bits)
+        self._fixed_extra = None
+        if not self.obs_context.hidden and self.obs_context.noise == 0:
+            self._fixed_extra = np.asarray(self._values(self.context, self._episode_key))
+        self.time = 0
+        base_obs = self.env.reset_physics(self.context, rng)
+        return self._observation(base_obs), context_vector, index
+
+    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
+        if not self.action_space.contains(np.asarray(action, self.action_space.dtype)):
+            raise ValueError(f"action {action!r} is outside the action space {self.action_space}")
+        base_obs, reward, terminated = self.env.step_physics(action)
+        self.time += 1
+        obs = self._observation(base_obs)
+        return obs, float(reward), bool(terminated), self.time >= self.max_steps
+
+    def close(self) -> None:
+        self.env.close()
