@@ -207,7 +207,8 @@ class RelativeUniform:
             raise ContextError(
                 f"{feature.name}: RelativeUniform is empty (a {self.a:g} > b {self.b:g})"
             )
-        self._absolute(feature).check(feature)
+        absolute = self._absolute(feature)
+        _inside(feature, absolute.low, absolute.high, f"RelativeUniform({self.a:g}, {self.b:g})")
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:
         return self._absolute(feature).sample(key, n, feature)

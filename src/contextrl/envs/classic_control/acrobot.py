@@ -181,8 +181,10 @@ class Acrobot(Env):
 
     def transition(self, key, state, action, context: AcrobotContext):
         noise = context.torque_noise_max
-        torque = (action - 1).astype(jnp.float32) + jax.random.uniform(
-            key, (), minval=-noise, maxval=noise
+        torque = (
+            jnp.asarray(action, jnp.float32)
+            - 1.0
+            + jax.random.uniform(key, (), minval=-noise, maxval=noise)
         )
         s = rk4(state, torque, context, DT)
         s = jnp.stack(
