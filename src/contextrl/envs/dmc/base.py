@@ -49,6 +49,27 @@ from contextrl.context.features import ContextError, feature  # noqa: E402
 from contextrl.core.host import HostEnv  # noqa: E402
 
 TIMESTEP_BOUNDS = (0.001, 0.1)
+# Model constants mj_setConst derives from masses and the model state; kept as compiled so that the
+# stock masses restore them exactly (recomputing would differ where a task moved a geom, e.g. Fish's
+# target, whose bounding box the compiler computed at its XML position).
+DERIVED_CONSTANTS = (
+    "body_subtreemass",
+    "body_invweight0",
+    "dof_invweight0",
+    "dof_M0",
+    "tendon_invweight0",
+    "tendon_length0",
+    "actuator_acc0",
+    "actuator_length0",
+    "cam_pos0",
+    "cam_mat0",
+    "cam_poscom0",
+    "light_pos0",
+    "light_dir0",
+    "light_poscom0",
+    "bvh_aabb",
+)
+STATISTICS = ("meaninertia", "meanmass", "meansize", "extent", "center")
 
 
 # ---- common feature declarations (each domain's context class lists the ones that act on it) --------
@@ -170,6 +191,10 @@ class DmcEnv(HostEnv):
         model = self._physics.model
         self._stock_mass = model.body_mass.copy()
         self._stock_inertia = model.body_inertia.copy()
+        self._stock_constants = {
+            name: getattr(model, name).copy() for name in DERIVED_CONSTANTS if hasattr(model, name)
+        }
+        self._stock_statistics = {name: np.copy(getattr(model.stat, name)) for name in STATISTICS}
         self._task.random.seed(0)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
@@ -273,12 +298,20 @@ class DmcEnv(HostEnv):
             model = self._physics.model
             model.body_mass[:] = self._stock_mass * scale
             model.body_inertia[:] = self._stock_inertia * scale
-            self._set_const()
+            self._set_const(stock=scale == 1.0)
             self._applied["geom_density"] = scale
 
-    def _set_const(self) -> None:
-        """Recompute the model constants derived from masses (subtree masses, inverse weights…)."""
-        mujoco.mj_setConst(self._physics.model.ptr, self._physics.data.ptr)
+    def _set_const(self, stock: bool) -> None:
+        """Recompute the constants derived from masses (subtree masses, inverse weights, mean inertia
+        …), or restore them as compiled when the masses are the stock ones."""
+        model = self._physics.model
+        if not stock:
+            mujoco.mj_setConst(model.ptr, self._physics.data.ptr)
+            return
+        for name, value in self._stock_constants.items():
+            getattr(model, name)[...] = value
+        for name, value in self._stock_statistics.items():
+            setattr(model.stat, name, value)
 
     def _apply_parameters(self, values: dict[str, float]) -> None:
         """Every feature that is a plain model parameter, from the stock values (cheap: no recompile)."""

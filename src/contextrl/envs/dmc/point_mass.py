@@ -127,7 +127,7 @@ class DmcPointMass(base.DmcEnv):
             ratio = mass / self._stock_mass[self._ball]
             model.body_mass[self._ball] = mass
             model.body_inertia[self._ball] = self._stock_inertia[self._ball] * ratio
-            self._set_const()
+            self._set_const(stock=ratio == 1.0)
             self._applied["mass"] = mass
 
     def _after_initialize(self, values: dict[str, float]) -> None:
