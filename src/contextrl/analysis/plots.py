@@ -1,0 +1,209 @@
+"""The figures of a contextual-RL study: eCDFs, training curves with CI bands, histograms,
+2-D heat maps with the training region outlined, interval plots and an environment-property radar.
+
+Every function returns a matplotlib Figure (Agg backend, no display needed); :func:`to_png` turns one
+into bytes for the HTML report.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from contextrl.analysis.intervals import Interval, curve_band  # noqa: E402
+
+
+def to_png(figure: Figure, dpi: int = 100) -> bytes:
+    """The figure as PNG bytes; the figure is closed afterwards."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def ecdf_values(values) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted values and the fraction of values at or below each."""
+    x = np.sort(np.asarray(values, dtype=float).ravel())
+    return x, np.arange(1, x.size + 1) / x.size
+
+
+def ecdf(returns_by_label: Mapping[str, Sequence[float]], title: str = "", xlabel: str = "return"):
+    """One eCDF line per label (further right is better)."""
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    for label, values in returns_by_label.items():
+        x, y = ecdf_values(values)
+        axis.step(x, y, where="post", label=str(label))
+    axis.set(xlabel=xlabel, ylabel="proportion", title=title, ylim=(0, 1.02))
+    axis.legend(fontsize="small")
+    axis.grid(alpha=0.3)
+    return figure
+
+
+def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], title: str = ""):
+    """A panel per feature, one eCDF per magnitude A coloured from low to high (the paper's Fig. 3)."""
+    features = list(returns)
+    columns = min(3, len(features))
+    rows = -(-len(features) // columns)
+    figure, axes = plt.subplots(
+        rows, columns, figsize=(4.2 * columns, 3.2 * rows), squeeze=False, sharey=True
+    )
+    cmap = plt.get_cmap("viridis")
+    for axis, name in zip(axes.ravel(), features, strict=False):
+        magnitudes = sorted(returns[name])
+        top = max(magnitudes[-1], 1e-9)
+        for magnitude in magnitudes:
+            x, y = ecdf_values(returns[name][magnitude])
+            axis.step(x, y, where="post", color=cmap(magnitude / top), label=f"A={magnitude:g}")
+        axis.set(title=name, xlabel="return", ylim=(0, 1.02))
+        axis.grid(alpha=0.3)
+    for axis in axes.ravel()[len(features) :]:
+        axis.axis("off")
+    axes[0, 0].set_ylabel("proportion")
+    mappable = plt.cm.ScalarMappable(
+        cmap=cmap, norm=matplotlib.colors.Normalize(0, max(max(r) for r in returns.values()))
+    )
+    figure.colorbar(mappable, ax=axes, label="magnitude A (× default)", shrink=0.8)
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
+def training_curves(
+    steps: Sequence[float],
+    curves_by_label: Mapping[str, np.ndarray],
+    title: str = "",
+    seed: int = 0,
+):
+    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points)."""
+    figure, axis = plt.subplots(figsize=(5.5, 3.5))
+    for label, curves in curves_by_label.items():
+        mean, low, high = curve_band(curves, seed=seed)
+        (line,) = axis.plot(steps, mean, label=str(label))
+        axis.fill_between(steps, low, high, color=line.get_color(), alpha=0.25)
+    axis.set(xlabel="environment steps", ylabel="episode return", title=title)
+    axis.legend(fontsize="small")
+    axis.grid(alpha=0.3)
+    return figure
+
+
+def histograms(returns_by_label: Mapping[str, Sequence[float]], title: str = "", bins: int = 20):
+    """Overlaid histograms of test returns."""
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    every = np.concatenate([np.ravel(v) for v in returns_by_label.values()])
+    edges = np.histogram_bin_edges(every, bins=bins)
+    for label, values in returns_by_label.items():
+        axis.hist(np.ravel(values), bins=edges, alpha=0.5, label=str(label))
+    axis.set(xlabel="return", ylabel="count", title=title)
+    axis.legend(fontsize="small")
+    return figure
+
+
+def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
+    """rliable-style interval plot: a panel per metric, a bar (CI) and tick (point) per label."""
+    labels = list(results)
+    metrics = list(next(iter(results.values())))
+    figure, axes = plt.subplots(
+        1, len(metrics), figsize=(3.2 * len(metrics), 0.6 + 0.5 * len(labels)), squeeze=False
+    )
+    for axis, metric in zip(axes[0], metrics, strict=True):
+        for row, label in enumerate(labels):
+            interval = results[label][metric]
+            axis.barh(row, interval.high - interval.low, left=interval.low, height=0.6, alpha=0.6)
+            axis.vlines(interval.point, row - 0.3, row + 0.3, color="black")
+        axis.set_yticks(range(len(labels)), labels if axis is axes[0, 0] else [""] * len(labels))
+        axis.set_title(metric)
+        axis.grid(axis="x", alpha=0.3)
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
+def heatmap(
+    x,
+    y,
+    values,
+    *,
+    xlabel: str,
+    ylabel: str,
+    regions: Sequence[tuple[float, float, float, float]] = (),
+    train_points=None,
+    bins: int = 12,
+    title: str = "",
+    vmin: float | None = None,
+    vmax: float | None = None,
+):
+    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red."""
+    x, y, values = (np.asarray(a, dtype=float).ravel() for a in (x, y, values))
+    xedges = np.linspace(x.min(), x.max(), bins + 1)
+    yedges = np.linspace(y.min(), y.max(), bins + 1)
+    total, _, _ = np.histogram2d(x, y, bins=(xedges, yedges), weights=values)
+    count, _, _ = np.histogram2d(x, y, bins=(xedges, yedges))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / count, np.nan)
+    figure, axis = plt.subplots(figsize=(5, 4))
+    mesh = axis.pcolormesh(xedges, yedges, mean.T, cmap="viridis", vmin=vmin, vmax=vmax)
+    figure.colorbar(mesh, ax=axis, label="mean return")
+    for x0, x1, y0, y1 in regions:
+        axis.add_patch(
+            matplotlib.patches.Rectangle(
+                (x0, y0), max(x1 - x0, 1e-9), max(y1 - y0, 1e-9), fill=False, color="red", lw=2
+            )
+        )
+    if train_points is not None:
+        points = np.asarray(train_points, dtype=float)
+        axis.scatter(points[:, 0], points[:, 1], s=6, color="red", alpha=0.5, label="train")
+        axis.legend(fontsize="small", loc="upper right")
+    axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    return figure
+
+
+def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
+    """Environment properties on a radar chart, each axis scaled by its largest value."""
+    names = list(properties)
+    axes_names = list(next(iter(properties.values())))
+    top = {a: max(float(properties[n][a]) for n in names) or 1.0 for a in axes_names}
+    angles = np.linspace(0, 2 * np.pi, len(axes_names), endpoint=False)
+    closed = np.append(angles, angles[0])
+    figure = plt.figure(figsize=(5, 5))
+    axis = figure.add_subplot(projection="polar")
+    for name in names:
+        values = [float(properties[name][a]) / top[a] for a in axes_names]
+        axis.plot(closed, values + values[:1], label=name)
+        axis.fill(closed, values + values[:1], alpha=0.15)
+    axis.set_xticks(angles, [f"{a}\n(max {top[a]:g})" for a in axes_names], fontsize="small")
+    axis.set_yticklabels([])
+    axis.legend(fontsize="small", loc="upper right", bbox_to_anchor=(1.3, 1.1))
+    if title:
+        axis.set_title(title)
+    return figure
+
+
+def bars(values: Mapping[str, float], *, ylabel: str, title: str = ""):
+    """One bar per label (e.g. the exact optimality gap of each tabular cMDP)."""
+    figure, axis = plt.subplots(figsize=(max(4, 0.7 * len(values)), 3.5))
+    axis.bar(range(len(values)), list(values.values()), color="tab:blue")
+    axis.set_xticks(range(len(values)), list(values), rotation=45, ha="right", fontsize="small")
+    axis.set(ylabel=ylabel, title=title)
+    axis.grid(axis="y", alpha=0.3)
+    return figure
+
+
+def scatter(
+    x, y_by_label: Mapping[str, Sequence[float]], *, xlabel: str, ylabel: str, title: str = ""
+):
+    """Points per label against one feature (e.g. the per-context gap against pole length)."""
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    for label, y in y_by_label.items():
+        axis.scatter(x, y, s=12, label=str(label))
+    axis.axhline(0.0, color="gray", lw=0.8)
+    axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    axis.legend(fontsize="small")
+    axis.grid(alpha=0.3)
+    return figure

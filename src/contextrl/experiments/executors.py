@@ -1,0 +1,143 @@
+"""Executors run the unfinished chunks of a plan and write each one as soon as it is done.
+
+``local`` trains chunk after chunk in this process (each chunk one vmapped, compiled call). ``ray``
+sends chunks to a Ray cluster (``address``: an existing cluster, or None to start a local one); the
+workers rebuild the plan from the spec, so only the spec and a chunk index travel. Either way a chunk
+that raises is recorded with its error and traceback and the run goes on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+import traceback
+from collections.abc import Callable
+
+from contextrl.experiments.protocols import Plan, expand
+from contextrl.experiments.runs import RunDir
+from contextrl.experiments.spec import parse_spec, spec_to_dict
+from contextrl.experiments.trials import run_chunk
+
+EXECUTORS = ("local", "ray")
+
+
+@dataclasses.dataclass
+class Summary:
+    """What an execution did: chunks run, skipped (already finished) and failed."""
+
+    ran: list[int]
+    skipped: list[int]
+    failed: list[int]
+    remaining: list[int]
+    seconds: float
+
+
+class Progress:
+    """One line per finished chunk: trials done, failures, elapsed time and an ETA."""
+
+    def __init__(self, plan: Plan, todo: list[int], stream=sys.stderr, enabled: bool = True):
+        self.plan, self.total, self.stream, self.enabled = plan, len(todo), stream, enabled
+        self.done, self.failed, self.start = 0, 0, time.perf_counter()
+
+    def __call__(self, chunk: int, ok: bool) -> None:
+        self.done += 1
+        self.failed += not ok
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        eta = elapsed / self.done * (self.total - self.done)
+        trials = len(self.plan.chunks[chunk])
+        status = "ok" if ok else "FAILED"
+        print(
+            f"[{self.done}/{self.total} chunks] chunk {chunk} ({trials} trials) {status}; "
+            f"{self.failed} failed; elapsed {elapsed:.0f}s, eta {eta:.0f}s",
+            file=self.stream,
+            flush=True,
+        )
+
+
+def _pending(run: RunDir, plan: Plan, max_chunks: int | None) -> tuple[list[int], list[int]]:
+    finished = run.finished()
+    todo = [i for i in range(len(plan.chunks)) if i not in finished]
+    if max_chunks is not None:
+        todo = todo[:max_chunks]
+    return todo, sorted(finished)
+
+
+def _trial_ids(plan: Plan, chunk: int) -> list[str]:
+    return [plan.trials[i].id for i in plan.chunks[chunk]]
+
+
+def run_local(
+    run: RunDir,
+    plan: Plan,
+    *,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    save_params: bool = True,
+    chunk_runner: Callable = run_chunk,
+) -> Summary:
+    """Run the unfinished chunks in this process, in plan order."""
+    start = time.perf_counter()
+    todo, skipped = _pending(run, plan, max_chunks)
+    report = Progress(plan, todo, enabled=progress)
+    ran, failed = [], []
+    for chunk in todo:
+        try:
+            result = chunk_runner(plan, plan.chunks[chunk])
+        except Exception as error:  # a failing trial must not kill the run
+            run.record_failure(chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc())
+            failed.append(chunk)
+            report(chunk, False)
+            continue
+        run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
+        ran.append(chunk)
+        report(chunk, True)
+    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
+    return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
+
+
+def _remote_chunk(spec_data: dict, chunk: int):
+    """What a Ray worker runs: rebuild the plan from the spec, run one chunk."""
+    plan = expand(parse_spec(spec_data))
+    return run_chunk(plan, plan.chunks[chunk])
+
+
+def run_ray(
+    run: RunDir,
+    plan: Plan,
+    *,
+    address: str | None = None,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    save_params: bool = True,
+    cpus_per_chunk: float = 1.0,
+) -> Summary:
+    """Spread the unfinished chunks over a Ray cluster; results are written here as they arrive."""
+    import ray
+
+    start = time.perf_counter()
+    if not ray.is_initialized():
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    todo, skipped = _pending(run, plan, max_chunks)
+    report = Progress(plan, todo, enabled=progress)
+    remote = ray.remote(num_cpus=cpus_per_chunk, max_retries=0)(_remote_chunk)
+    spec_data = spec_to_dict(plan.spec)
+    pending = {remote.remote(spec_data, chunk): chunk for chunk in todo}
+    ran, failed = [], []
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        chunk = pending.pop(done[0])
+        try:
+            result = ray.get(done[0])
+        except Exception as error:
+            run.record_failure(chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc())
+            failed.append(chunk)
+            report(chunk, False)
+            continue
+        run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
+        ran.append(chunk)
+        report(chunk, True)
+    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
+    return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)

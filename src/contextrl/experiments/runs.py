@@ -1,0 +1,185 @@
+"""Run directories: the resolved spec, per-chunk results as Parquet (atomic), failures, checkpoints.
+
+Layout of ``runs/<name>-<time>/``::
+
+    spec.yaml            the resolved spec (a run is rebuilt from it on resume)
+    manifest.json        versions, seeds, plan size, start time
+    results/chunk-0003.parquet    evaluation rows of the trials of chunk 3
+    curves/chunk-0003.parquet     their training curves
+    checkpoints/<trial>.npz       trained parameters
+    failures/chunk-0003.json      error and traceback of a chunk that raised
+    timings.json         seconds per finished chunk
+    figures/*.png, report.html
+
+Every file is written to a temporary name in the same folder and renamed into place, so a run killed at
+any moment leaves only whole files; a chunk counts as finished when its results file exists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import json
+import os
+import platform
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import yaml
+
+from contextrl.experiments.spec import CommonSpec, parse_spec, spec_to_dict
+
+
+def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
+    """Call ``write(temporary_path)``, then rename the temporary file onto ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(handle)
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temporary)
+        raise
+    return path
+
+
+def write_text(path: Path, text: str) -> Path:
+    def write(temporary: str) -> None:
+        with open(temporary, "w", encoding="utf-8") as handle:
+            handle.write(text)
+
+    return atomic_write(path, write)
+
+
+def write_parquet(path: Path, frame: pd.DataFrame) -> Path:
+    return atomic_write(path, lambda temporary: frame.to_parquet(temporary, index=False))
+
+
+def versions() -> dict[str, str]:
+    """Versions of the packages a result depends on."""
+    from importlib import metadata
+
+    out = {"python": platform.python_version()}
+    for package in ("contextrl", "jax", "jaxlib", "numpy", "gymnasium", "optax", "pandas", "ray"):
+        with contextlib.suppress(metadata.PackageNotFoundError):
+            out[package] = metadata.version(package)
+    return out
+
+
+class RunDir:
+    """One run's folder; knows which chunks are finished and reads the results back."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+
+    @classmethod
+    def create(cls, spec: CommonSpec, root: str | os.PathLike = "runs", out: str | None = None):
+        """A new run folder (``out``, or ``root/<name>-<UTC time>``) holding the spec and manifest."""
+        if out is not None:
+            path = Path(out)
+            if (path / "spec.yaml").exists():
+                raise FileExistsError(
+                    f"{path} already holds a run; resume it with --resume {path} or pick a new --out"
+                )
+        else:
+            stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
+            path = Path(root) / f"{spec.name}-{stamp}"
+            suffix = 1
+            while path.exists():
+                suffix += 1
+                path = Path(root) / f"{spec.name}-{stamp}-{suffix}"
+        run = cls(path)
+        path.mkdir(parents=True, exist_ok=True)
+        write_text(path / "spec.yaml", yaml.safe_dump(spec_to_dict(spec), sort_keys=False))
+        manifest = {
+            "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "versions": versions(),
+            "platform": platform.platform(),
+        }
+        write_text(path / "manifest.json", json.dumps(manifest, indent=2))
+        return run
+
+    def spec(self) -> CommonSpec:
+        """The run's spec, re-validated."""
+        file = self.path / "spec.yaml"
+        if not file.exists():
+            raise FileNotFoundError(f"{self.path} is not a run directory (no spec.yaml)")
+        return parse_spec(yaml.safe_load(file.read_text(encoding="utf-8")))
+
+    def manifest(self) -> dict[str, Any]:
+        file = self.path / "manifest.json"
+        return json.loads(file.read_text()) if file.exists() else {}
+
+    def update_manifest(self, **values: Any) -> None:
+        manifest = self.manifest()
+        manifest.update(values)
+        write_text(self.path / "manifest.json", json.dumps(manifest, indent=2, default=str))
+
+    def result_path(self, chunk: int) -> Path:
+        return self.path / "results" / f"chunk-{chunk:04d}.parquet"
+
+    def finished(self) -> set[int]:
+        """Chunks whose results are on disk (temporary leftovers of a crash do not count)."""
+        folder = self.path / "results"
+        if not folder.exists():
+            return set()
+        return {int(p.stem.split("-")[1]) for p in folder.glob("chunk-*.parquet")}
+
+    def save_chunk(self, chunk: int, result, trial_ids: list[str], save_params: bool) -> None:
+        """Write a finished chunk: checkpoints and curves first, the results file last (the marker)."""
+        if save_params:
+            from contextrl.agents import save_checkpoint
+
+            for trial_id, params in zip(trial_ids, result.params, strict=True):
+                if params is not None:
+                    save_checkpoint(
+                        self.path / "checkpoints" / f"{trial_id}.npz", params, trial=trial_id
+                    )
+        if len(result.curves):
+            write_parquet(self.path / "curves" / f"chunk-{chunk:04d}.parquet", result.curves)
+        timings = self.timings()
+        timings[str(chunk)] = result.seconds
+        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
+        with contextlib.suppress(FileNotFoundError):
+            (self.path / "failures" / f"chunk-{chunk:04d}.json").unlink()
+        write_parquet(self.result_path(chunk), result.evaluations)
+
+    def record_failure(self, chunk: int, trial_ids: list[str], error: str, traceback: str) -> None:
+        record = {"chunk": chunk, "trials": trial_ids, "error": error, "traceback": traceback}
+        write_text(self.path / "failures" / f"chunk-{chunk:04d}.json", json.dumps(record, indent=2))
+
+    def failures(self) -> list[dict[str, Any]]:
+        folder = self.path / "failures"
+        if not folder.exists():
+            return []
+        return [json.loads(p.read_text()) for p in sorted(folder.glob("chunk-*.json"))]
+
+    def timings(self) -> dict[str, float]:
+        file = self.path / "timings.json"
+        return json.loads(file.read_text()) if file.exists() else {}
+
+    def _read(self, folder: str) -> pd.DataFrame:
+        files = sorted((self.path / folder).glob("chunk-*.parquet"))
+        if not files:
+            return pd.DataFrame()
+        frame = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+        return frame
+
+    def results(self) -> pd.DataFrame:
+        """Every finished evaluation row, sorted by trial and context (independent of finish order)."""
+        frame = self._read("results")
+        if frame.empty:
+            return frame
+        return frame.sort_values(["trial", "test_set", "context_index"], ignore_index=True)
+
+    def curves(self) -> pd.DataFrame:
+        frame = self._read("curves")
+        if frame.empty:
+            return frame
+        return frame.sort_values(["trial", "step"], ignore_index=True)
