@@ -1,0 +1,24 @@
+"""Baseline agents in JAX (PPO, DQN/C51, SAC): each training run is one compiled function.
+
+from contextrl.agents import ppo, evaluate
+train = ppo.make_train(ppo.PPOConfig(context_obs="concat_varying"), env, train_contexts)
+result = jax.jit(jax.vmap(train))(jax.random.split(key, 10))      # 10 seeds at once
+policy = ppo.make_policy(config, env, train_contexts)
+returns = evaluate(policy, params, env, test_contexts, episodes=10, key=key)
+"""
+
+from contextrl.agents import ppo
+from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_checkpoint
+from contextrl.agents.evaluation import evaluate, evaluate_episodes
+from contextrl.agents.networks import CONTEXT_MODES, ConfigError
+
+__all__ = [
+    "CONTEXT_MODES",
+    "ConfigError",
+    "checkpoint_info",
+    "evaluate",
+    "evaluate_episodes",
+    "load_checkpoint",
+    "ppo",
+    "save_checkpoint",
+]

@@ -1,0 +1,187 @@
+"""Network pieces shared by every agent: MLPs in plain JAX and the context encoders.
+
+Parameters are nested dicts of arrays (a pytree), so they vmap over seeds, save to a checkpoint and
+load back without a framework. How the agent sees the context is one of four modes:
+
+- ``hidden``: the network gets the observation only (the context-oblivious baseline);
+- ``concat_all``: every context feature, normalised by its bounds to [0, 1], is appended to the input;
+- ``concat_varying``: only the features that vary in the training contexts are appended;
+- ``gated``: the first hidden layer of the observation is multiplied, element-wise, by a context
+  encoder's output in (0, 2) (the "cGate" idea: the context modulates state features instead of
+  being one more input among many).
+
+The context vector is always built by the agent from the environment state's context, never read from
+the observation, so "concat_varying" can be computed from the training set.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from contextrl.context.distributions import DISTRIBUTIONS, Constant
+from contextrl.context.features import ContextBase, ContextSpace
+
+CONTEXT_MODES = ("hidden", "concat_all", "concat_varying", "gated")
+ACTIVATIONS = {"tanh": jnp.tanh, "relu": jax.nn.relu}
+
+Params = dict[str, Any]
+
+
+class ConfigError(ValueError):
+    """An invalid agent configuration, raised before anything is compiled."""
+
+
+def dense_init(key, n_in: int, n_out: int, scale: float) -> Params:
+    """Orthogonal weights scaled by ``scale`` and zero biases (the PPO/CleanRL initialisation)."""
+    kernel = jax.nn.initializers.orthogonal(scale)(key, (n_in, n_out), jnp.float32)
+    return {"kernel": kernel, "bias": jnp.zeros((n_out,), jnp.float32)}
+
+
+def dense(params: Params, x: jax.Array) -> jax.Array:
+    return x @ params["kernel"] + params["bias"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ContextInput:
+    """Which context features a network sees (indices into the context space) and their bounds."""
+
+    mode: str = "hidden"
+    indices: tuple[int, ...] = ()
+    lower: tuple[float, ...] = ()
+    upper: tuple[float, ...] = ()
+
+    @property
+    def size(self) -> int:
+        return len(self.indices)
+
+    def vector(self, space: ContextSpace, context: Any) -> jax.Array:
+        """The normalised context features (in [0, 1]) the network sees; empty when hidden."""
+        if not self.indices:
+            return jnp.zeros(jnp.shape(getattr(context, space.names[0])) + (0,), jnp.float32)
+        values = space.to_array(context)[..., list(self.indices)]
+        lower = np.asarray(self.lower, np.float32)
+        span = np.maximum(np.asarray(self.upper, np.float32) - lower, 1e-8)
+        return jnp.clip((values - lower) / span, 0.0, 1.0)
+
+
+def varying_features(space: ContextSpace, train_contexts: Any) -> tuple[str, ...]:
+    """Features that vary in a context set, or that a distribution spec draws non-constantly."""
+    if isinstance(train_contexts, ContextBase):
+        if not train_contexts.batch_shape:
+            return ()
+        return space.varying(train_contexts)
+    if isinstance(train_contexts, Mapping):
+        return tuple(
+            space.resolve(name)
+            for name, value in train_contexts.items()
+            if isinstance(value, DISTRIBUTIONS) and not isinstance(value, Constant)
+        )
+    return ()
+
+
+def context_input(mode: str, space: ContextSpace, train_contexts: Any) -> ContextInput:
+    """Resolve a context mode against the environment's context space and the training contexts."""
+    if mode not in CONTEXT_MODES:
+        raise ConfigError(
+            f"context_obs: unknown mode {mode!r}; choose one of {list(CONTEXT_MODES)}"
+        )
+    if mode == "hidden":
+        return ContextInput()
+    if mode == "concat_varying":
+        names = varying_features(space, train_contexts)
+        if not names:
+            raise ConfigError(
+                "context_obs='concat_varying': no context feature varies in the training contexts, "
+                "so there is nothing to append; use 'hidden' or 'concat_all'"
+            )
+    else:
+        names = space.names
+    indices = tuple(space.names.index(n) for n in names)
+    return ContextInput(
+        mode,
+        indices,
+        tuple(float(space.lower[i]) for i in indices),
+        tuple(float(space.upper[i]) for i in indices),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class ConditionedMLP:
+    """An MLP from (input, context vector) to ``out_size`` outputs, conditioned as ``context`` says."""
+
+    in_size: int
+    out_size: int
+    hidden_sizes: tuple[int, ...]
+    context: ContextInput = ContextInput()
+    activation: str = "tanh"
+    out_scale: float = 1.0
+
+    def init(self, key) -> Params:
+        sizes = list(self.hidden_sizes)
+        first_in = self.in_size + (
+            self.context.size if self.context.mode.startswith("concat") else 0
+        )
+        keys = jax.random.split(key, len(sizes) + 2)
+        params: Params = {}
+        n_in = first_in
+        for i, width in enumerate(sizes):
+            params[f"layer_{i}"] = dense_init(keys[i], n_in, width, math.sqrt(2.0))
+            n_in = width
+        params["out"] = dense_init(keys[len(sizes)], n_in, self.out_size, self.out_scale)
+        if self.context.mode == "gated":
+            # Zero weights and bias: the gate starts at exactly 1, i.e. as the hidden agent.
+            params["gate"] = dense_init(keys[-1], self.context.size, sizes[0], 0.0)
+        return params
+
+    def apply(self, params: Params, x: jax.Array, context_vector: jax.Array) -> jax.Array:
+        activation = ACTIVATIONS[self.activation]
+        if self.context.mode.startswith("concat"):
+            x = jnp.concatenate([x, context_vector], axis=-1)
+        for i in range(len(self.hidden_sizes)):
+            x = activation(dense(params[f"layer_{i}"], x))
+            if i == 0 and self.context.mode == "gated":
+                x = x * 2.0 * jax.nn.sigmoid(dense(params["gate"], context_vector))
+        return dense(params["out"], x)
+
+
+def check_positive(
+    name: str, value: Any, *, integer: bool = False, allow_zero: bool = False
+) -> None:
+    """Refuse a non-finite, wrongly typed, negative (or zero) configuration value with a clear error."""
+    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+    if isinstance(value, bool) or not isinstance(value, kinds):
+        kind = "an integer" if integer else "a number"
+        raise ConfigError(f"{name} must be {kind}, got {value!r}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{name} must be finite, got {value!r}")
+    if value < 0 or (value == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ConfigError(f"{name} must be {bound}, got {value!r}")
+
+
+def check_fraction(name: str, value: Any, *, include_one: bool = True) -> None:
+    """Refuse a value outside [0, 1] (or [0, 1))."""
+    check_positive(name, value, allow_zero=True)
+    if value > 1 or (value == 1 and not include_one):
+        raise ConfigError(f"{name} must be in [0, 1{']' if include_one else ')'}, got {value!r}")
+
+
+def check_hidden_sizes(value: Sequence[int], activation: str) -> tuple[int, ...]:
+    if isinstance(value, int) or not all(
+        isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0 for v in value
+    ):
+        raise ConfigError(
+            f"hidden_sizes must be a non-empty list of positive integers, got {value!r}"
+        )
+    if len(value) == 0:
+        raise ConfigError("hidden_sizes must list at least one layer width")
+    if activation not in ACTIVATIONS:
+        raise ConfigError(f"activation: unknown {activation!r}; choose one of {list(ACTIVATIONS)}")
+    return tuple(int(v) for v in value)

@@ -1,0 +1,406 @@
+"""Proximal Policy Optimisation (clipped objective, GAE), the whole training run one JAX function.
+
+    config = ppo.PPOConfig(total_timesteps=500_000, context_obs="concat_varying")
+    train = ppo.make_train(config, env, train_contexts)
+    result = jax.jit(train)(key)                          # one seed
+    results = jax.jit(jax.vmap(train))(keys)              # many seeds in one call
+    specialists = jax.jit(jax.vmap(train))(keys, sets)    # one agent per context set (leading axis)
+
+``train(key, contexts=None)``: with ``contexts`` omitted the agent trains on the ``train_contexts``
+given to ``make_train``; a batch of the same shape trains on that set instead, which is how ``vmap``
+trains specialists. Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
+the action bounds when stepping). Episodes cut by the time limit bootstrap from the value of the final
+observation instead of counting as failures.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from contextrl.agents.common import (
+    EpisodeLog,
+    Progress,
+    anneal,
+    check_env,
+    contextual_env_factory,
+    num_context_ids,
+)
+from contextrl.agents.networks import (
+    ConditionedMLP,
+    ConfigError,
+    ContextInput,
+    check_fraction,
+    check_hidden_sizes,
+    check_positive,
+    context_input,
+)
+from contextrl.core.spaces import Box, Discrete
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyper-parameters (defaults: PureJaxRL's CartPole settings)."""
+
+    total_timesteps: int = 500_000
+    """Environment steps over all copies; rounded down to whole updates."""
+    num_envs: int = 4
+    """Environment copies stepped in parallel."""
+    num_steps: int = 128
+    """Steps per copy in each rollout (one update per rollout)."""
+    learning_rate: float = 2.5e-4
+    """Adam step size."""
+    anneal_lr: bool = True
+    """Decay the learning rate linearly to zero over training."""
+    gamma: float = 0.99
+    """Discount factor."""
+    gae_lambda: float = 0.95
+    """GAE trace parameter."""
+    num_minibatches: int = 4
+    """Minibatches per epoch; must divide num_envs × num_steps."""
+    update_epochs: int = 4
+    """Passes over each rollout."""
+    clip_eps: float = 0.2
+    """Clip range of the policy ratio and of the value change."""
+    ent_coef: float = 0.01
+    """Weight of the entropy bonus."""
+    vf_coef: float = 0.5
+    """Weight of the value loss."""
+    max_grad_norm: float = 0.5
+    """Global gradient-norm clip."""
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    """Widths of the hidden layers of actor and critic (separate networks)."""
+    activation: str = "tanh"
+    """Hidden activation: "tanh" or "relu"."""
+    log_std_init: float = 0.0
+    """Initial log standard deviation of the Gaussian policy (continuous actions)."""
+    context_obs: str = "hidden"
+    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
+    context_selector: str = "random"
+    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    episode_log_size: int = 1000
+    """How many of the most recent episodes the result keeps individually."""
+    progress_every: int = 0
+    """Print a progress line every this many updates (0: silent)."""
+
+    def __post_init__(self):
+        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+
+    def validate(self) -> None:
+        """Raise ConfigError for any value that cannot train."""
+        for name in (
+            "total_timesteps",
+            "num_envs",
+            "num_steps",
+            "num_minibatches",
+            "update_epochs",
+        ):
+            check_positive(name, getattr(self, name), integer=True)
+        for name in ("learning_rate", "max_grad_norm"):
+            check_positive(name, getattr(self, name))
+        for name in ("clip_eps", "ent_coef", "vf_coef"):
+            check_positive(name, getattr(self, name), allow_zero=True)
+        check_fraction("gamma", self.gamma)
+        check_fraction("gae_lambda", self.gae_lambda)
+        check_positive("episode_log_size", self.episode_log_size, integer=True)
+        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
+        check_hidden_sizes(self.hidden_sizes, self.activation)
+        if not isinstance(self.log_std_init, (int, float)) or not np.isfinite(self.log_std_init):
+            raise ConfigError(f"log_std_init must be a finite number, got {self.log_std_init!r}")
+        batch = self.num_envs * self.num_steps
+        if batch % self.num_minibatches:
+            raise ConfigError(
+                f"num_minibatches ({self.num_minibatches}) must divide num_envs × num_steps ({batch})"
+            )
+        if self.total_timesteps < batch:
+            raise ConfigError(
+                f"total_timesteps ({self.total_timesteps}) is less than one rollout "
+                f"(num_envs × num_steps = {batch})"
+            )
+
+    @property
+    def num_updates(self) -> int:
+        return self.total_timesteps // (self.num_envs * self.num_steps)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class TrainResult:
+    """Trained parameters and training metrics (arrays; a leading axis per vmapped seed/agent).
+
+    ``metrics``: per update ``step``, ``episode_return``/``episode_length`` (mean of episodes ended in
+    the update, NaN if none), ``episodes_finished``, ``context_return`` (per context id),
+    ``actor_loss``, ``value_loss``, ``entropy``; and ``episodes``: the most recent episodes
+    (``return``, ``length``, ``context_id``, ``step`` at which it ended, ``total`` finished).
+    """
+
+    params: Any
+    metrics: dict
+
+
+@dataclasses.dataclass(frozen=True)
+class _Networks:
+    actor: ConditionedMLP
+    critic: ConditionedMLP
+    context: ContextInput
+    discrete: bool
+    action_low: np.ndarray | None
+    action_high: np.ndarray | None
+
+
+def _networks(config: PPOConfig, env, train_contexts) -> _Networks:
+    config.validate()
+    check_env(env, "PPO")
+    space = env.action_space
+    if isinstance(space, Discrete):
+        discrete, action_size, low, high = True, space.n, None, None
+    elif isinstance(space, Box) and len(space.shape) == 1:
+        discrete, action_size, low, high = False, space.shape[0], space.low, space.high
+    else:
+        raise ConfigError(f"PPO needs a Discrete or a 1-D Box action space, got {space!r}")
+    obs_shape = env.observation_space.shape
+    if len(obs_shape) != 1:
+        raise ConfigError(f"PPO needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
+    context = context_input(config.context_obs, env.context_space, train_contexts)
+    common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
+    actor = ConditionedMLP(obs_shape[0], action_size, out_scale=0.01, **common)
+    critic = ConditionedMLP(obs_shape[0], 1, out_scale=1.0, **common)
+    return _Networks(actor, critic, context, discrete, low, high)
+
+
+def _policy_outputs(nets: _Networks, params, obs, context_vector):
+    """Logits (discrete) or (mean, log_std) (continuous)."""
+    out = nets.actor.apply(params["actor"], obs, context_vector)
+    if nets.discrete:
+        return out, None
+    return out, jnp.broadcast_to(params["log_std"], out.shape)
+
+
+def _sample(nets: _Networks, params, obs, context_vector, key):
+    """An action, its log-probability."""
+    head, log_std = _policy_outputs(nets, params, obs, context_vector)
+    if nets.discrete:
+        action = jax.random.categorical(key, head)
+        log_prob = jnp.take_along_axis(
+            jax.nn.log_softmax(head), action[..., None], axis=-1
+        ).squeeze(-1)
+        return action, log_prob
+    action = head + jnp.exp(log_std) * jax.random.normal(key, head.shape)
+    return action, _gaussian_log_prob(head, log_std, action)
+
+
+def _gaussian_log_prob(mean, log_std, x):
+    z = (x - mean) / jnp.exp(log_std)
+    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
+
+
+def _log_prob_entropy(nets: _Networks, params, obs, context_vector, action):
+    head, log_std = _policy_outputs(nets, params, obs, context_vector)
+    if nets.discrete:
+        log_probs = jax.nn.log_softmax(head)
+        log_prob = jnp.take_along_axis(log_probs, action[..., None], axis=-1).squeeze(-1)
+        entropy = -jnp.sum(jnp.exp(log_probs) * log_probs, axis=-1)
+        return log_prob, entropy
+    entropy = jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e), axis=-1)
+    return _gaussian_log_prob(head, log_std, action), entropy
+
+
+def _env_action(nets: _Networks, action):
+    if nets.discrete:
+        return action
+    low = jnp.asarray(np.where(np.isfinite(nets.action_low), nets.action_low, -np.inf))
+    high = jnp.asarray(np.where(np.isfinite(nets.action_high), nets.action_high, np.inf))
+    return jnp.clip(action, low, high)
+
+
+def _init_params(nets: _Networks, config: PPOConfig, key) -> dict:
+    actor_key, critic_key = jax.random.split(key)
+    params = {"actor": nets.actor.init(actor_key), "critic": nets.critic.init(critic_key)}
+    if not nets.discrete:
+        params["log_std"] = jnp.full((nets.actor.out_size,), config.log_std_init, jnp.float32)
+    return params
+
+
+def init_params(config: PPOConfig, env, train_contexts: Any, key) -> dict:
+    """Freshly initialised parameters (what ``train`` starts from for the same key's split)."""
+    return _init_params(_networks(config, env, train_contexts), config, key)
+
+
+def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs, num_steps = config.num_envs, config.num_steps
+    num_updates = config.num_updates
+    minibatch_size = num_envs * num_steps // config.num_minibatches
+    optimizer = optax.chain(
+        optax.clip_by_global_norm(config.max_grad_norm),
+        optax.adam(
+            anneal(
+                config.learning_rate,
+                num_updates * config.update_epochs * config.num_minibatches,
+                config.anneal_lr,
+            ),
+            eps=1e-5,
+        ),
+    )
+    progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
+
+    def value(params, obs, context_vector):
+        return nets.critic.apply(params["critic"], obs, context_vector).squeeze(-1)
+
+    def loss_fn(params, batch):
+        obs, context_vector, action, old_log_prob, old_value, advantage, target = batch
+        log_prob, entropy = _log_prob_entropy(nets, params, obs, context_vector, action)
+        new_value = value(params, obs, context_vector)
+        clipped_value = old_value + jnp.clip(
+            new_value - old_value, -config.clip_eps, config.clip_eps
+        )
+        value_loss = (
+            0.5 * jnp.maximum((new_value - target) ** 2, (clipped_value - target) ** 2).mean()
+        )
+        ratio = jnp.exp(log_prob - old_log_prob)
+        advantage = (advantage - advantage.mean()) / (advantage.std() + 1e-8)
+        actor_loss = -jnp.minimum(
+            ratio * advantage,
+            jnp.clip(ratio, 1 - config.clip_eps, 1 + config.clip_eps) * advantage,
+        ).mean()
+        entropy = entropy.mean()
+        total = actor_loss + config.vf_coef * value_loss - config.ent_coef * entropy
+        return total, (actor_loss, value_loss, entropy)
+
+    def train(key, contexts: Any = None) -> TrainResult:
+        cenv = build_env(contexts)
+        key, init_key, reset_key = jax.random.split(key, 3)
+        params = _init_params(nets, config, init_key)
+        opt_state = optimizer.init(params)
+        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
+        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
+
+        def env_step(carry, _):
+            params, env_state, obs, log, step, key = carry
+            key, action_key, step_key = jax.random.split(key, 3)
+            context_vector = context_of(env_state.context)
+            action, log_prob = _sample(nets, params, obs, context_vector, action_key)
+            state_value = value(params, obs, context_vector)
+            env_state, timestep = jax.vmap(cenv.step)(
+                jax.random.split(step_key, num_envs), env_state, _env_action(nets, action)
+            )
+            step = step + num_envs
+            # A time-limit cut is not a failure: bootstrap from the final observation's value.
+            cut = timestep.truncated & ~timestep.terminated
+            final_value = value(params, timestep.final_obs, context_vector)
+            reward = timestep.reward + config.gamma * final_value * cut
+            log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
+            transition = (obs, context_vector, action, log_prob, state_value, reward, timestep.done)
+            return (params, env_state, timestep.obs, log, step, key), transition
+
+        def update(carry, period):
+            params, opt_state, env_state, obs, log, step, key = carry
+            (params, env_state, obs, log, step, key), rollout = jax.lax.scan(
+                env_step, (params, env_state, obs, log, step, key), None, num_steps
+            )
+            observations, context_vectors, actions, log_probs, values, rewards, dones = rollout
+            last_value = value(params, obs, context_of(env_state.context))
+
+            def gae_step(carry, inputs):
+                advantage, next_value = carry
+                reward, state_value, done = inputs
+                not_done = 1.0 - done
+                delta = reward + config.gamma * next_value * not_done - state_value
+                advantage = delta + config.gamma * config.gae_lambda * not_done * advantage
+                return (advantage, state_value), advantage
+
+            _, advantages = jax.lax.scan(
+                gae_step,
+                (jnp.zeros_like(last_value), last_value),
+                (rewards, values, dones.astype(jnp.float32)),
+                reverse=True,
+            )
+            targets = advantages + values
+            batch = (observations, context_vectors, actions, log_probs, values, advantages, targets)
+            batch = jax.tree_util.tree_map(
+                lambda x: x.reshape((num_envs * num_steps,) + x.shape[2:]), batch
+            )
+
+            def epoch(carry, _):
+                params, opt_state, key = carry
+                key, perm_key = jax.random.split(key)
+                permutation = jax.random.permutation(perm_key, num_envs * num_steps)
+                minibatches = jax.tree_util.tree_map(
+                    lambda x: x[permutation].reshape(
+                        (config.num_minibatches, minibatch_size) + x.shape[1:]
+                    ),
+                    batch,
+                )
+
+                def minibatch_step(carry, minibatch):
+                    params, opt_state = carry
+                    grads, losses = jax.grad(loss_fn, has_aux=True)(params, minibatch)
+                    updates, opt_state = optimizer.update(grads, opt_state, params)
+                    return (optax.apply_updates(params, updates), opt_state), losses
+
+                (params, opt_state), losses = jax.lax.scan(
+                    minibatch_step, (params, opt_state), minibatches
+                )
+                return (params, opt_state, key), losses
+
+            (params, opt_state, key), losses = jax.lax.scan(
+                epoch, (params, opt_state, key), None, config.update_epochs
+            )
+            log, row = log.close_period()
+            row["step"] = step
+            row["actor_loss"], row["value_loss"], row["entropy"] = (x.mean() for x in losses)
+            progress.report(period, step, row["episode_return"])
+            return (params, opt_state, env_state, obs, log, step, key), row
+
+        carry = (params, opt_state, env_state, timestep.obs, log, jnp.zeros((), jnp.int32), key)
+        (params, _, _, _, log, _, _), metrics = jax.lax.scan(update, carry, jnp.arange(num_updates))
+        metrics["episodes"] = log.episodes()
+        return TrainResult(params, metrics)
+
+    return train
+
+
+def make_policy(
+    config: PPOConfig, env, train_contexts: Any, deterministic: bool = True
+) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
+    """``policy(params, obs, ctx, key) -> action`` for one observation and its context.
+
+    Deterministic: the most likely action (discrete) or the Gaussian mean; otherwise a sample. The
+    action is what the environment takes (continuous actions clipped to the bounds).
+    """
+    nets = _networks(config, env, train_contexts)
+    space = env.context_space
+
+    def policy(params, obs, ctx, key):
+        context_vector = nets.context.vector(space, ctx)
+        if deterministic:
+            head, _ = _policy_outputs(nets, params, obs, context_vector)
+            action = jnp.argmax(head, axis=-1) if nets.discrete else head
+        else:
+            action, _ = _sample(nets, params, obs, context_vector, key)
+        return _env_action(nets, action)
+
+    return policy
+
+
+def action_distribution(config: PPOConfig, env, train_contexts: Any) -> Callable:
+    """``(params, obs, ctx) -> probabilities`` (discrete) or ``(mean, std)`` (continuous)."""
+    nets = _networks(config, env, train_contexts)
+    space = env.context_space
+
+    def distribution(params, obs, ctx):
+        head, log_std = _policy_outputs(nets, params, obs, nets.context.vector(space, ctx))
+        return jax.nn.softmax(head) if nets.discrete else (head, jnp.exp(log_std))
+
+    return distribution
