@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+from collections.abc import Callable, Hashable
 from typing import Any
 
 import gymnasium
@@ -20,6 +21,7 @@ from jax import lax
 from contextrl.context.observation import ContextObservation
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
+from contextrl.core.spaces import Discrete
 from contextrl.gymnasium.packing import Packer
 from contextrl.gymnasium.schedule import ContextSchedule
 
@@ -60,32 +62,43 @@ def advance(env: Env, key, state, action, context):
     return next_state, obs, reward, terminated, time >= env.max_steps
 
 
-class JaxBackend:
-    """A JAX ``Env`` behind two compiled functions (start, advance), each one vector in, one out."""
+_PROGRAM_CACHE: dict[Hashable, Any] = {}
+PROGRAM_CACHE_SIZE = 64
+
+
+def shared_program(key: Hashable | None, build: Callable[[], Any]) -> Any:
+    """Compiled programs shared by every adapter with the same static configuration (``key``).
+
+    Compiling costs far more than stepping; two adapters over the same env and selector reuse one
+    program. A None key (something unhashable, e.g. a lambda's closure state) builds a private one.
+    """
+    if key is None:
+        return build()
+    if key not in _PROGRAM_CACHE:
+        if len(_PROGRAM_CACHE) >= PROGRAM_CACHE_SIZE:
+            _PROGRAM_CACHE.pop(next(iter(_PROGRAM_CACHE)))
+        _PROGRAM_CACHE[key] = build()
+    return _PROGRAM_CACHE[key]
+
+
+class JaxPrograms:
+    """The compiled start and step of one env and one kind of schedule, each one vector in, one out.
+
+    Only the schedule's selector or spec is baked in; the context set is the ``table`` argument.
+    """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
         self.env = env
         self.schedule = schedule
         self.space = env.context_space
-        self.action_space = env.action_space.to_gymnasium()
-        self.flat_space = env.observation_space.to_gymnasium()
-        self.base_size = int(np.prod(env.base_observation_space.shape))
-        self.obs_size = int(np.prod(env.observation_space.shape))
+        self.discrete = isinstance(env.action_space, Discrete)
         key = jax.random.key(0)
         state_shape = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
-        example = (state_shape, jax.random.key_data(key), env.default_context())
-        self.packer = Packer(example)
-        self.carry: np.ndarray | None = None
-        self._discrete = isinstance(self.action_space, gymnasium.spaces.Discrete)
-        self._start = jax.jit(self._start_fn)
-        self._start_with = jax.jit(self._start_with_fn)
-        self._step = jax.jit(self._step_fn)
-        self._buffer = np.zeros(self.packer.size + self._action_words(), np.uint32)
+        self.packer = Packer((state_shape, jax.random.key_data(key), env.default_context()))
+        self.start = jax.jit(self._start_fn)
+        self.start_with = jax.jit(self._start_with_fn)
+        self.step = jax.jit(self._step_fn)
 
-    def _action_words(self) -> int:
-        return 1 if self._discrete else int(np.prod(self.action_space.shape))
-
-    # ---- compiled pieces ----------------------------------------------------------------------------
     def _begin(self, env_key, context_vector, index):
         reset_key, step_key = jax.random.split(env_key)
         context = self.space.from_array(context_vector)
@@ -100,29 +113,52 @@ class JaxBackend:
             ]
         )
 
-    def _start_fn(self, words):
+    def _start_fn(self, words, table):
         episode = words[KEY_WORDS].astype(jnp.int32)
         select_key, env_key = episode_keys(words[:KEY_WORDS], episode)
-        context_vector, index = self.schedule.choose(select_key, episode)
+        context_vector, index = self.schedule.choose(select_key, episode, table)
         return self._begin(env_key, context_vector, index)
 
     def _start_with_fn(self, words):
-        _, env_key = episode_keys(words[:KEY_WORDS], words[KEY_WORDS])
+        _, env_key = episode_keys(words[:KEY_WORDS], words[KEY_WORDS].astype(jnp.int32))
         context_vector = _bits_float(words[KEY_WORDS + 1 :])
         return self._begin(env_key, context_vector, jnp.int32(-1))
 
     def _step_fn(self, words):
         size = self.packer.size
         state, key_bits, context = self.packer.unpack(words[:size])
-        if self._discrete:
+        if self.discrete:
             action = lax.bitcast_convert_type(words[size], jnp.int32)
         else:
-            action = _bits_float(words[size:]).reshape(self.action_space.shape)
+            action = _bits_float(words[size:]).reshape(self.env.action_space.shape)
         key = jax.random.wrap_key_data(key_bits)
         state, obs, reward, terminated, truncated = advance(self.env, key, state, action, context)
         flags = jnp.stack([terminated, truncated]).astype(jnp.uint32)
         carry = self.packer.pack((state, key_bits, context))
         return jnp.concatenate([carry, _float_bits(obs), _float_bits(reward), flags])
+
+
+class JaxBackend:
+    """A JAX ``Env`` stepped through :class:`JaxPrograms`; the host keeps the packed state."""
+
+    def __init__(self, env: Env, schedule: ContextSchedule):
+        self.env = env
+        self.schedule = schedule
+        self.space = env.context_space
+        key = schedule.program_key
+        self.programs = shared_program(
+            None if key is None else ("single", env, key), lambda: JaxPrograms(env, schedule)
+        )
+        self.packer = self.programs.packer
+        self.table = jnp.asarray(schedule.table)
+        self.action_space = env.action_space.to_gymnasium()
+        self.flat_space = env.observation_space.to_gymnasium()
+        self.base_size = int(np.prod(env.base_observation_space.shape))
+        self.obs_size = int(np.prod(env.observation_space.shape))
+        self.carry: np.ndarray | None = None
+        self._discrete = self.programs.discrete
+        action_words = 1 if self._discrete else int(np.prod(self.action_space.shape))
+        self._buffer = np.zeros(self.packer.size + action_words, np.uint32)
 
     # ---- host side ------------------------------------------------------------------------------------
     def _unpack_start(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -139,9 +175,9 @@ class JaxBackend:
         """Begin an episode: (observation, context vector, set index or -1)."""
         head = np.concatenate([key_bits, np.array([episode], np.uint32)])
         if context is None:
-            return self._unpack_start(np.asarray(self._start(head)))
+            return self._unpack_start(np.asarray(self.programs.start(head, self.table)))
         words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
-        return self._unpack_start(np.asarray(self._start_with(words)))
+        return self._unpack_start(np.asarray(self.programs.start_with(words)))
 
     def action_words(self, action: Any) -> np.ndarray:
         if self._discrete:
@@ -167,7 +203,7 @@ class JaxBackend:
         buffer = self._buffer
         buffer[:size] = self.carry
         buffer[size:] = self.action_words(action)
-        out = np.asarray(self._step(buffer))
+        out = np.asarray(self.programs.step(buffer))
         self.carry = out[:size]
         tail = out[size:]
         obs = tail[: self.obs_size].view(np.float32).copy()
@@ -208,6 +244,7 @@ class HostBackend:
             dtype=np.float32,
         )
         self.obs_size = self.flat_space.shape[0]
+        self.table = jnp.asarray(schedule.table)
         self._choose = jax.jit(self._choose_fn)
         self._values = jax.jit(lambda context, key: obs_context.values(self.space, context, key))
         self.time = 0
@@ -217,7 +254,7 @@ class HostBackend:
 
     def _choose_fn(self, key_bits, episode):
         select_key, env_key = episode_keys(key_bits, episode)
-        context_vector, index = self.schedule.choose(select_key, episode)
+        context_vector, index = self.schedule.choose(select_key, episode, self.table)
         return context_vector, index, jax.random.key_data(env_key)
 
     def _observation(self, base_obs) -> np.ndarray:

@@ -8,7 +8,7 @@ a pure JAX provider that picks the context of each episode, plus the ids users s
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
 import jax
@@ -39,10 +39,39 @@ class ContextSchedule:
         """The id users see for a set index (``RESAMPLED_ID`` for contexts from elsewhere)."""
         return RESAMPLED_ID if index < 0 else self.ids[index]
 
-    def choose(self, key, episode) -> tuple[jax.Array, jax.Array]:
-        """(context as a float32 feature vector, set index or -1) for one episode; pure and jittable."""
-        context, index = self.provider(key, episode)
-        return self.space.to_array(context), jnp.asarray(index, jnp.int32)
+    @property
+    def table(self) -> np.ndarray:
+        """The set as a float32 (contexts × features) array; (0, features) when resampling."""
+        if self.resamples:
+            return np.zeros((0, len(self.space)), np.float32)
+        return np.asarray(self.space.to_array(self.provider.contexts), np.float32)
+
+    @property
+    def program_key(self) -> Hashable | None:
+        """What compiled code depends on: the selector or the spec, not the set's values (an argument).
+
+        None when that is not hashable (then nothing compiled is shared between adapters).
+        """
+        if self.resamples:
+            key = ("resample", self.space, tuple(self.provider.spec.items()))
+        else:
+            key = ("set", self.space, self.provider.selector)
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    def choose(self, key, episode, table) -> tuple[jax.Array, jax.Array]:
+        """(context as a float32 feature vector, set index or -1) for one episode; pure and jittable.
+
+        ``table`` is :attr:`table` passed as an argument, so one compiled program serves every set.
+        """
+        if self.resamples:
+            context, index = self.provider(key, episode)
+            return self.space.to_array(context), jnp.asarray(index, jnp.int32)
+        index = jnp.asarray(self.provider.selector(key, episode, table.shape[0]), jnp.int32)
+        return table[index], index
 
     def visible_features(self, features: None | str | Sequence[str]) -> None | str | Sequence[str]:
         """Resolve "varying" for a distribution spec (the features it does not hold constant)."""

@@ -29,10 +29,80 @@ from gymnasium.vector.utils import batch_space
 from contextrl.context.features import ContextError
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
-from contextrl.gymnasium.backends import episode_keys
+from contextrl.core.spaces import Discrete
+from contextrl.gymnasium.backends import episode_keys, shared_program
 from contextrl.gymnasium.env import ContextualGymEnv, build_env, check_max_steps, render_fps
 from contextrl.gymnasium.packing import Packer
-from contextrl.gymnasium.schedule import RESAMPLED_ID, resolve_contexts
+from contextrl.gymnasium.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
+
+
+class VectorPrograms:
+    """The compiled reset and step of ``num_envs`` copies (vmapped), shared by equal configurations."""
+
+    def __init__(self, env: Env, schedule: ContextSchedule, num_envs: int):
+        self.env = env
+        self.schedule = schedule
+        self.num_envs = num_envs
+        self.context_space = env.context_space
+        self.discrete = isinstance(env.action_space, Discrete)
+        key = jax.random.key(0)
+        state = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
+        self.packer = Packer(
+            (state, env.default_context(), jnp.int32(0), jnp.int32(0), jax.random.key_data(key))
+        )
+        self.reset = jax.jit(jax.vmap(self._reset_copy, in_axes=(None, 0, None)))
+        self.step = jax.jit(jax.vmap(self._step_copy, in_axes=(0, 0, None)))
+
+    def _global_episode(self, copy, episode):
+        return copy.astype(jnp.int32) + episode * self.num_envs
+
+    def _begin(self, copy_key_bits, copy, episode, table):
+        select_key, env_key = episode_keys(copy_key_bits, episode)
+        vector, index = self.schedule.choose(select_key, self._global_episode(copy, episode), table)
+        return self.context_space.from_array(vector), index, env_key
+
+    def _reset_copy(self, seed_bits, copy, table):
+        copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
+        copy_bits = jax.random.key_data(copy_key)
+        episode = jnp.int32(0)
+        context, index, env_key = self._begin(copy_bits, copy, episode, table)
+        state, timestep = self.env.reset(env_key, context)
+        carry = self.packer.pack((state, context, index, episode, copy_bits))
+        return carry, self._outputs(timestep, index, index, context, copy_bits)
+
+    def _step_copy(self, words, copy, table):
+        size = self.packer.size
+        state, context, index, episode, copy_bits = self.packer.unpack(words[:size])
+        if self.discrete:
+            action = jax.lax.bitcast_convert_type(words[size], jnp.int32)
+        else:
+            action = jax.lax.bitcast_convert_type(words[size:], jnp.float32).reshape(
+                self.env.action_space.shape
+            )
+        _, env_key = episode_keys(copy_bits, episode)
+        step_key = jax.random.fold_in(env_key, state.time + 1)
+        next_context, next_index, _ = self._begin(copy_bits, copy, episode + 1, table)
+        state, timestep = self.env.step_then_reset(step_key, state, action, context, next_context)
+        done = timestep.done
+        new_context = tree_where(done, next_context, context)
+        new_index = jnp.where(done, next_index, index)
+        new_episode = jnp.where(done, episode + 1, episode)
+        carry = self.packer.pack((state, new_context, new_index, new_episode, copy_bits))
+        return carry, self._outputs(timestep, index, new_index, new_context, copy_bits)
+
+    def _outputs(self, timestep, index, new_index, context, copy_bits):
+        """One float32 row per copy: obs, reward, flags, final_obs, ids, context values."""
+        return jnp.concatenate(
+            [
+                timestep.obs,
+                timestep.reward[None],
+                timestep.terminated[None].astype(jnp.float32),
+                timestep.truncated[None].astype(jnp.float32),
+                timestep.final_obs,
+                jnp.stack([index, new_index]).astype(jnp.float32),
+                self.context_space.to_array(context),
+            ]
+        )
 
 
 class ContextualVectorEnv(gymnasium.vector.VectorEnv):
@@ -114,69 +184,17 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             if all(isinstance(i, (int, np.integer)) for i in ids)
             else np.asarray(ids, object)
         )
-        key = jax.random.key(0)
-        state = jax.eval_shape(lambda k, c: self.env.reset(k, c)[0], key, env.default_context())
-        self.packer = Packer(
-            (state, env.default_context(), jnp.int32(0), jnp.int32(0), jax.random.key_data(key))
+        program_key = self.schedule.program_key
+        self.programs = shared_program(
+            None if program_key is None else ("vector", self.env, program_key, self.num_envs),
+            lambda: VectorPrograms(self.env, self.schedule, self.num_envs),
         )
+        self.packer = self.programs.packer
+        self.table = jnp.asarray(self.schedule.table)
         self.action_words = 1 if self._discrete else int(np.prod(self.single_action_space.shape))
-        self._reset_fn = jax.jit(jax.vmap(self._reset_copy, in_axes=(None, 0)))
-        self._step_fn = jax.jit(jax.vmap(self._step_copy))
         self._copies = np.arange(self.num_envs, dtype=np.uint32)
         self._carry: np.ndarray | None = None
         self._buffer = np.zeros((self.num_envs, self.packer.size + self.action_words), np.uint32)
-
-    # ---- compiled, per copy (vmapped) -------------------------------------------------------------
-    def _global_episode(self, copy, episode):
-        return copy.astype(jnp.int32) + episode * self.num_envs
-
-    def _begin(self, copy_key_bits, copy, episode):
-        select_key, env_key = episode_keys(copy_key_bits, episode)
-        vector, index = self.schedule.choose(select_key, self._global_episode(copy, episode))
-        return self.context_space.from_array(vector), index, env_key
-
-    def _reset_copy(self, seed_bits, copy):
-        copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
-        copy_bits = jax.random.key_data(copy_key)
-        episode = jnp.int32(0)
-        context, index, env_key = self._begin(copy_bits, copy, episode)
-        state, timestep = self.env.reset(env_key, context)
-        carry = self.packer.pack((state, context, index, episode, copy_bits))
-        return carry, self._outputs(timestep, index, index, context, copy_bits)
-
-    def _step_copy(self, words, copy):
-        size = self.packer.size
-        state, context, index, episode, copy_bits = self.packer.unpack(words[:size])
-        if self._discrete:
-            action = jax.lax.bitcast_convert_type(words[size], jnp.int32)
-        else:
-            action = jax.lax.bitcast_convert_type(words[size:], jnp.float32).reshape(
-                self.single_action_space.shape
-            )
-        _, env_key = episode_keys(copy_bits, episode)
-        step_key = jax.random.fold_in(env_key, state.time + 1)
-        next_context, next_index, _ = self._begin(copy_bits, copy, episode + 1)
-        state, timestep = self.env.step_then_reset(step_key, state, action, context, next_context)
-        done = timestep.done
-        new_context = tree_where(done, next_context, context)
-        new_index = jnp.where(done, next_index, index)
-        new_episode = jnp.where(done, episode + 1, episode)
-        carry = self.packer.pack((state, new_context, new_index, new_episode, copy_bits))
-        return carry, self._outputs(timestep, index, new_index, new_context, copy_bits)
-
-    def _outputs(self, timestep, index, new_index, context, copy_bits):
-        """One float32 row per copy: obs, reward, flags, final_obs, ids, context values."""
-        return jnp.concatenate(
-            [
-                timestep.obs,
-                timestep.reward[None],
-                timestep.terminated[None].astype(jnp.float32),
-                timestep.truncated[None].astype(jnp.float32),
-                timestep.final_obs,
-                jnp.stack([index, new_index]).astype(jnp.float32),
-                self.context_space.to_array(context),
-            ]
-        )
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
@@ -225,7 +243,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         super().reset(seed=seed)
         seed_key = jax.random.key(int(self.np_random.integers(2**32, dtype=np.uint64)))
         seed_bits = np.asarray(jax.random.key_data(seed_key), np.uint32)
-        carry, rows = self._reset_fn(seed_bits, self._copies)
+        carry, rows = self.programs.reset(seed_bits, self._copies, self.table)
         self._carry = np.asarray(carry)
         rows = np.asarray(rows)
         return self._observations(rows[:, : self.obs_size].copy()), self._info(rows)
@@ -255,7 +273,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         size = self.packer.size
         self._buffer[:, :size] = self._carry
         self._buffer[:, size:] = self._action_words(actions)
-        carry, rows = self._step_fn(self._buffer, self._copies)
+        carry, rows = self.programs.step(self._buffer, self._copies, self.table)
         self._carry = np.asarray(carry)
         rows = np.asarray(rows)
         d = self.obs_size
