@@ -24,6 +24,8 @@ SELECTORS = ("round_robin", "random", "static")
 class RoundRobin:
     """Contexts in order, one per episode, wrapping around."""
 
+    uses_key = False
+
     def __call__(self, key, episode, n):
         return episode % n
 
@@ -31,6 +33,8 @@ class RoundRobin:
 @dataclasses.dataclass(frozen=True)
 class RandomSelector:
     """A uniformly random context per episode, drawn from the reset key (never a global RNG)."""
+
+    uses_key = True
 
     def __call__(self, key, episode, n):
         return jax.random.randint(key, (), 0, n)
@@ -41,6 +45,7 @@ class Static:
     """Always the same context (index into the set)."""
 
     index: int = 0
+    uses_key = False
 
     def __call__(self, key, episode, n):
         return jnp.asarray(self.index, jnp.int32)
@@ -51,6 +56,7 @@ class Custom:
     """A user function ``fn(key, episode_index, num_contexts) -> index``, traced into the loop."""
 
     fn: Callable[[Any, Any, int], Any]
+    uses_key = True
 
     def __call__(self, key, episode, n):
         return jnp.asarray(self.fn(key, episode, n), jnp.int32)
@@ -98,6 +104,10 @@ class FromSet:
         return len(self.contexts)
 
     @property
+    def uses_key(self) -> bool:
+        return self.selector.uses_key
+
+    @property
     def space(self) -> ContextSpace:
         return type(self.contexts).space
 
@@ -112,6 +122,7 @@ class Resample:
 
     space: ContextSpace
     spec: Mapping[str, Distribution]
+    uses_key = True
 
     def __post_init__(self):
         object.__setattr__(self, "spec", check_spec(self.space, self.spec))

@@ -55,6 +55,9 @@ class ContextualEnv:
         return self.env.action_space
 
     def _choose(self, key, episode):
+        """The context of episode number ``episode`` and the key left for the environment."""
+        if not self.provider.uses_key:  # round robin and static: no random draw, no key split
+            return (key, *self.provider(None, episode))
         select_key, env_key = jax.random.split(key)
         context, context_id = self.provider(select_key, episode)
         return env_key, context, context_id

@@ -1,0 +1,148 @@
+"""Steps per second of batched contextual environments, every copy with its own context.
+
+    python benchmarks/bench_envs.py [--gymnax] [--quick]
+
+Prints CartPole at batch sizes 1 … 65,536, the other classic-control environments at 4,096, and the cost
+of choosing a new context at every reset (a context set with round robin, or resampling from a
+distribution) against fixed per-copy contexts. ``--gymnax`` also measures gymnax's CartPole in the same
+loop, in a separate virtual environment (.venv-gymnax, built on first use), and prints the ratio.
+"""
+
+import argparse
+import pathlib
+import subprocess
+import sys
+
+import jax
+from _scan import random_rollout, steps_per_second
+
+import contextrl as crl
+
+HERE = pathlib.Path(__file__).resolve().parent
+GYMNAX_VENV = HERE.parent / ".venv-gymnax"
+LENGTHS = {"length": crl.Uniform(0.25, 0.75)}
+
+
+def fixed_contexts(env, n, spec):
+    """Plain env.reset/env.step; each copy keeps its own context for the whole run."""
+    contexts = crl.sample(env, spec, n, jax.random.key(0))
+
+    def reset(key, ctx):
+        state, ts = env.reset(key, ctx)
+        return state, ts.obs
+
+    def step(key, state, action, ctx):
+        state, ts = env.step(key, state, action, ctx)
+        return state, ts.obs
+
+    return reset, step, contexts
+
+
+def switching_contexts(env, n, spec, resample: bool):
+    """ContextualEnv: each copy picks a new context at every reset, inside the compiled loop."""
+    if resample:
+        contextual = crl.with_contexts(env, spec)
+    else:
+        contextual = crl.with_contexts(env, crl.sample(env, spec, 64, jax.random.key(0)))
+
+    def reset(key, _):
+        state, ts = contextual.reset(key)
+        return state, ts.obs
+
+    def step(key, state, action, _):
+        state, ts = contextual.step(key, state, action)
+        return state, ts.obs
+
+    return reset, step, jax.numpy.zeros(n)
+
+
+def measure(env, n, steps, make=fixed_contexts, **kwargs):
+    spec = LENGTHS if "length" in env.context_space.names else {}
+    if not spec:
+        name, f = next(iter(env.context_space.features.items()))
+        spec = {name: crl.Uniform(f.lower, f.upper)}
+    reset, step, params = make(env, n, spec, **kwargs)
+    run = random_rollout(reset, step, env.action_space.sample, params, steps)
+    return steps_per_second(run, n, steps)
+
+
+def gymnax_rate(copies: int, steps: int) -> float:
+    python = GYMNAX_VENV / "bin" / "python"
+    if not python.exists():
+        subprocess.run([sys.executable, "-m", "venv", str(GYMNAX_VENV)], check=True)
+        subprocess.run(
+            [
+                str(python),
+                "-m",
+                "pip",
+                "install",
+                "-q",
+                "jax==0.10.2",
+                "jaxlib==0.10.2",
+                "gymnax==1.0.1",
+                "six==1.17.0",
+            ],
+            check=True,
+        )
+    out = subprocess.run(
+        [
+            str(python),
+            str(HERE / "gymnax_cartpole.py"),
+            "--copies",
+            str(copies),
+            "--steps",
+            str(steps),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+        cwd=HERE,
+    )
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--gymnax", action="store_true", help="also measure gymnax CartPole")
+    parser.add_argument("--quick", action="store_true", help="fewer batch sizes and steps")
+    args = parser.parse_args()
+    steps = 200 if args.quick else 1000
+    print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {steps} random steps per copy\n")
+
+    cartpole = crl.make("CartPole")
+    sizes = [1, 64, 4096] if args.quick else [1, 16, 256, 1024, 4096, 16384, 65536]
+    print("CartPole, every copy its own pole length")
+    print(f"{'copies':>8} {'compile s':>10} {'steps/s':>12}")
+    for n in sizes:
+        compile_s, rate = measure(cartpole, n, steps if n >= 64 else steps * 4)
+        print(f"{n:>8} {compile_s:>10.2f} {rate:>12.3g}")
+
+    print("\nEvery environment at 4,096 copies")
+    print(f"{'env':>22} {'steps/s':>12}")
+    for env_id in [i for i in crl.registered("classic_control")]:
+        print(f"{env_id:>22} {measure(crl.make(env_id), 4096, steps)[1]:>12.3g}")
+
+    print("\nContext switch at reset (CartPole, 4,096 copies)")
+    fixed = measure(cartpole, 4096, steps)[1]
+    rows = [
+        ("fixed per-copy contexts", fixed),
+        (
+            "set of 64, round robin",
+            measure(cartpole, 4096, steps, switching_contexts, resample=False)[1],
+        ),
+        (
+            "resampled every reset",
+            measure(cartpole, 4096, steps, switching_contexts, resample=True)[1],
+        ),
+    ]
+    for label, rate in rows:
+        print(f"{label:>28} {rate:>12.3g} steps/s  ({rate / fixed:.2f} × fixed)")
+
+    if args.gymnax:
+        theirs = gymnax_rate(4096, steps)
+        print(f"\ngymnax CartPole, 4,096 copies with own lengths: {theirs:.3g} steps/s")
+        print(f"contextrl / gymnax = {fixed / theirs:.2f}")
+
+
+if __name__ == "__main__":
+    main()
