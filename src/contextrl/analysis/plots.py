@@ -121,7 +121,7 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
         axis.set_title(metric)
         axis.grid(axis="x", alpha=0.3)
     if title:
-        figure.suptitle(title)
+        figure.suptitle(title, y=1.08)
     return figure
 
 
@@ -179,9 +179,9 @@ def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
         axis.fill(closed, values + values[:1], alpha=0.15)
     axis.set_xticks(angles, [f"{a}\n(max {top[a]:g})" for a in axes_names], fontsize="small")
     axis.set_yticklabels([])
-    axis.legend(fontsize="small", loc="upper right", bbox_to_anchor=(1.3, 1.1))
+    axis.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.1, 1.0))
     if title:
-        axis.set_title(title)
+        axis.set_title(title, pad=24)
     return figure
 
 

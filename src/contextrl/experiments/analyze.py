@@ -204,7 +204,9 @@ def _curves_by_variant(curves: pd.DataFrame) -> tuple[np.ndarray, dict[str, np.n
     for variant, group in curves.groupby("variant", sort=False):
         wide = group.pivot_table(index="trial", columns="step", values="episode_return")
         wide = wide.reindex(columns=steps).ffill(axis=1).bfill(axis=1).fillna(0.0)
-        table[variant] = wide.to_numpy()
+        # a moving average over ~1/20 of training, so the band shows seeds, not update noise
+        window = max(1, len(steps) // 20)
+        table[variant] = wide.T.rolling(window, min_periods=1).mean().T.to_numpy()
     return steps, table
 
 

@@ -189,7 +189,7 @@ def train_test_contexts(spec: TrainTestSpec, mode: str, key) -> Any:
         thin_y = y0 + fraction * (y1 - y0) * jax.random.uniform(keys[3], (n,))
         x = jnp.where(on_x_edge, thin_x, x)
         y = jnp.where(on_x_edge, y, thin_y)
-    defaults = space.stack([space.default()] * n)
+    defaults = draw(space, {}, n, key)
     return defaults.replace(**{name_x: np.asarray(x), name_y: np.asarray(y)})
 
 
@@ -199,7 +199,7 @@ def train_test(spec: TrainTestSpec) -> tuple[dict, list]:
     (name_x, (sx0, sx1)), (name_y, (sy0, sy1)) = test_box.items()
     side = int(np.floor(np.sqrt(spec.num_test_contexts)))
     gx, gy = np.meshgrid(np.linspace(sx0, sx1, side), np.linspace(sy0, sy1, side), indexing="ij")
-    test = space.stack([space.default()] * gx.size).replace(
+    test = draw(space, {}, gx.size, jax.random.key(0)).replace(
         **{name_x: gx.ravel().astype(np.float32), name_y: gy.ravel().astype(np.float32)}
     )
     sets = {}

@@ -1,0 +1,124 @@
+"""Specs are refused before anything runs; plans expand deterministically into the right contexts."""
+
+import numpy as np
+import pytest
+
+from contextrl.experiments import (
+    SpecError,
+    expand,
+    parse_spec,
+    prepare,
+    run_experiment,
+    spec_to_dict,
+)
+from contextrl.experiments.protocols import REGIONS, region_of, train_test_contexts
+
+BAD_SPECS = [
+    ({"protocol": "nope"}, "unknown protocol 'nope'"),
+    ({"protocol": "visibility", "env": "CartPool"}, "unknown environment 'CartPool'"),
+    ({"protocol": "visibility", "train": {"pole_lenght": {"uniform": [0.3, 0.6]}}}, "pole_lenght"),
+    ({"protocol": "visibility", "train": {"length": {"uniform": [0.7, 0.3]}}}, "empty"),
+    ({"protocol": "visibility", "train": {}}, "at least one feature"),
+    ({"protocol": "visibility", "train": {"length": {"uniform": [0.3, 50.0]}}}, "bounds"),
+    (
+        {"protocol": "visibility", "train": {"length": {"gauss": [0.5, 0.1]}}},
+        "unknown distribution",
+    ),
+    ({"protocol": "visibility", "agent": "dqn2"}, "unknown agent 'dqn2'"),
+    ({"protocol": "visibility", "variants": ["hidden", "peek"]}, "unknown variant 'peek'"),
+    ({"protocol": "visibility", "seeds": 0}, "seeds"),
+    ({"protocol": "visibility", "seeds": 2.5}, "seeds"),
+    ({"protocol": "visibility", "colour": "red"}, "unknown field"),
+    ({"protocol": "sensitivity", "magnitudes": [1.0, float("nan")]}, "magnitudes"),
+    ({"protocol": "sensitivity", "features": ["masscart", "wheels"]}, "wheels"),
+    ({"protocol": "optimality_gap", "num_contexts": 0}, "num_contexts"),
+    (
+        {"protocol": "train_test", "test_box": {"length": [0.3, 1.5], "tau": [0.005, 0.05]}},
+        "overlaps the train range",
+    ),
+    (
+        {"protocol": "train_test", "test_box": {"length": [0.05, 1.5], "gravity": [1, 20]}},
+        "same two features",
+    ),
+    ({"protocol": "train_test", "modes": ["A", "D"]}, "unknown mode 'D'"),
+    ({"protocol": "tabular", "states": 30}, "too many"),
+    ({"protocol": "visibility", "agent_options": {"learning_rat": 0.1}}, "learning_rat"),
+    ({"protocol": "visibility", "agent_options": {"num_envs": -1}}, "num_envs"),
+]
+
+
+@pytest.mark.parametrize(("data", "message"), BAD_SPECS)
+def test_bad_spec_is_refused_before_anything_runs(data, message, tmp_path):
+    with pytest.raises(SpecError, match=message):
+        run_experiment(data, root=tmp_path / "runs", progress=False)
+    assert not (tmp_path / "runs").exists()
+
+
+def test_spec_round_trips_through_plain_data():
+    spec = prepare({"protocol": "train_test", "agent": "random", "variants": ["hidden"]})
+    assert parse_spec(spec_to_dict(spec)) == spec
+
+
+def test_distribution_strings_and_aliases():
+    spec = parse_spec({"protocol": "visibility", "train": {"pole_length": "uniform:0.3:0.6"}})
+    plan = expand(spec)
+    lengths = np.asarray(plan.sets["train"].contexts.length)
+    assert lengths.min() >= 0.3 and lengths.max() <= 0.6 and np.unique(lengths).size > 1
+
+
+def test_sensitivity_scales_each_feature_and_skips_out_of_bounds():
+    spec = parse_spec(
+        {
+            "protocol": "sensitivity",
+            "features": ["length", "masspole"],
+            "magnitudes": [0.5, 2.0, 20.0],
+        }
+    )
+    plan = expand(spec)
+    scaled = plan.sets["scaled"]
+    # length: 0.25, 1.0, 10 (> bound 5, skipped); masspole: 0.05, 0.2, 2.0 (> bound 1, skipped)
+    assert scaled.labels["feature"] == ["length", "length", "masspole", "masspole"]
+    np.testing.assert_allclose(np.asarray(scaled.contexts.length), [0.25, 1.0, 0.5, 0.5])
+    np.testing.assert_allclose(np.asarray(scaled.contexts.masspole), [0.1, 0.1, 0.05, 0.2])
+    assert [t.train_set for t in plan.trials] == ["default"] * spec.seeds
+
+
+def test_optimality_gap_plan_pairs_each_specialist_with_its_context():
+    spec = parse_spec({"protocol": "optimality_gap", "num_contexts": 5, "seeds": 2})
+    plan = expand(spec)
+    train = plan.sets["train"].contexts
+    assert len(plan.trials) == 2 * (1 + 5)
+    lengths = np.asarray(train.length)
+    assert lengths.min() >= 0.25 and lengths.max() <= 0.75
+    for i in range(5):
+        assert float(plan.sets[f"train[{i}]"].contexts.length[0]) == lengths[i]
+    # every specialist shares one chunk shape; the general agents another
+    assert sorted(len(c) for c in plan.chunks) == [2, 10]
+    assert expand(spec).sets["train"].contexts.length.tolist() == lengths.tolist()  # deterministic
+
+
+def test_regions_of_kirk_protocol():
+    box = [(0.0, 1.0), (0.0, 1.0)]
+    assert region_of((0.5, 0.5), box, "A", 0.1) == REGIONS[0]
+    assert region_of((0.5, 0.5), box, "B", 0.1) == REGIONS[1]  # inside box, off the L band
+    assert region_of((0.05, 0.5), box, "B", 0.1) == REGIONS[0]  # on the band
+    assert region_of((0.0, 0.7), box, "C", 0.1) == REGIONS[0]  # on an edge
+    assert region_of((1.5, 0.5), box, "A", 0.1) == REGIONS[2]
+    assert region_of((1.5, -0.5), box, "C", 0.1) == REGIONS[3]
+
+
+def test_train_modes_lie_on_their_support_and_sampling_always_ends():
+    import jax
+
+    spec = parse_spec({"protocol": "train_test", "num_train_contexts": 20_000})
+    (x0, x1), (y0, y1) = spec.boxes()[0].values()
+    for mode in "ABC":
+        contexts = train_test_contexts(spec, mode, jax.random.key(0))
+        x, y = np.asarray(contexts.length), np.asarray(contexts.tau)
+        assert len(x) == 20_000
+        assert np.all((x >= x0 - 1e-6) & (x <= x1 + 1e-6) & (y >= y0 - 1e-6) & (y <= y1 + 1e-6))
+        if mode == "C":
+            assert np.all(np.isclose(x, x0) | np.isclose(y, y0))
+        if mode == "B":
+            band = (x <= x0 + 0.1 * (x1 - x0) + 1e-6) | (y <= y0 + 0.1 * (y1 - y0) + 1e-6)
+            assert np.all(band)
