@@ -136,6 +136,9 @@ class ContextualGymEnv(gymnasium.Env):
         self.context_space = inner.context_space
         self.obs_context_as_dict = obs_context_as_dict
         self.render_mode = render_mode
+        self.render_world_box: tuple[float, float, float, float] | None = (
+            None  # None: fit the context
+        )
         self.copy_index, self.num_copies = int(copy_index), int(num_copies)
         self.metadata = {**self.metadata, "render_fps": render_fps(inner)}
         self.action_space = self.backend.action_space
@@ -247,7 +250,7 @@ class ContextualGymEnv(gymnasium.Env):
         from contextrl.render import draw
 
         physics, context = self.backend.physics_and_context()
-        return draw(self.contextrl_env, physics, context)
+        return draw(self.contextrl_env, physics, context, world_box=self.render_world_box)
 
     def close(self):
         self.backend.close()

@@ -71,8 +71,9 @@ class Canvas:
         self.pixels[rows, cols][mask] = color
 
     def line(self, start, end, width: float, color: Color) -> None:
-        """A thick segment of ``width`` world units with round ends."""
+        """A thick segment of ``width`` world units (at least 1.5 pixels) with round ends."""
         (x0, y0), (x1, y1) = start, end
+        width = max(width, 1.5 / self.scale)  # never thinner than a pixel and a half
         length = float(np.hypot(x1 - x0, y1 - y0))
         half = width / 2
         if length > 0:
