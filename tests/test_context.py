@@ -344,3 +344,21 @@ def test_registry_errors_and_carl_ids():
         crl.make("CartPol")
     with pytest.raises(ValueError, match="max_steps must be a positive integer"):
         crl.make("CartPole", max_steps=0)
+
+
+def test_a_batched_value_makes_a_batch(cartpole):
+    batch = cartpole.context(length=[0.3, 0.4, 0.5])
+    assert batch.batch_shape == (3,) and len(batch) == 3
+    np.testing.assert_allclose(batch.gravity, [9.8, 9.8, 9.8])
+    with pytest.raises(ContextError, match="different batch shapes"):
+        cartpole.context(length=[0.3, 0.4], gravity=[9.8, 9.8, 9.8])
+
+
+def test_demo_controller_return_depends_on_the_pole_length(cartpole):
+    from contextrl.demo import episode_returns
+
+    contexts = cartpole.context(length=np.repeat(np.float32([0.05, 0.5]), 16))
+    returns = np.asarray(
+        jax.jit(episode_returns, static_argnums=0)(cartpole, contexts, jax.random.key(0))
+    )
+    assert returns[:16].mean() < 200 and returns[16:].mean() == 500.0

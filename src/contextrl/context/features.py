@@ -225,11 +225,15 @@ class ContextSpace:
             if _is_concrete(value):
                 value = jnp.asarray(self.features[canonical].coerce(value))
             checked[canonical] = value
-        batch_shapes = {jnp.shape(v) for v in checked.values()}
+        base = self.default() if base is None else base
+        merged = {**base.as_dict(), **checked}
+        batch_shapes = {jnp.shape(v) for v in merged.values()} - {()}
         if len(batch_shapes) > 1:
             raise ContextError(f"features have different batch shapes: {sorted(batch_shapes)}")
-        base = self.default() if base is None else base
-        return dataclasses.replace(base, **checked)
+        if batch_shapes:  # one batched value makes a batch: the scalar features repeat along it
+            (shape,) = batch_shapes
+            merged = {n: jnp.broadcast_to(v, shape) for n, v in merged.items()}
+        return self.context_class(**merged)
 
     def from_dict(self, values: Mapping[str, Any]):
         return self.make(**dict(values))
