@@ -71,7 +71,7 @@ def _compiled(spec, variant: str, env, template):
         spec.agent,
         repr(sorted(spec.agent_options.items())),
         spec.eval_episodes,
-        variant,
+        variant if spec.agent != "random" else "",  # the random policy ignores the context
         len(template),
         env.context_space.varying(template) if len(template) > 1 else (),
     )

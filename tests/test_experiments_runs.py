@@ -1,0 +1,148 @@
+"""Whole protocols on a tiny budget: run directories, reports, resume, failures, atomic writes."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from contextrl.experiments import RunDir, expand, report, resume, run_experiment
+from contextrl.experiments.executors import run_local
+from contextrl.experiments.runs import atomic_write
+from contextrl.experiments.trials import run_chunk
+
+TINY = {"agent": "random", "max_steps": 20, "eval_episodes": 2, "bootstrap_reps": 100}
+
+
+def sections(run: RunDir) -> list[str]:
+    html = (run.path / "report.html").read_text()
+    return [part.split("</h2>")[0] for part in html.split("<h2>")[1:]]
+
+
+PROTOCOLS = [
+    (
+        {"protocol": "sensitivity", "features": ["length", "tau"], "magnitudes": [0.5, 1.0, 2.0]},
+        ["Summary", "Environment", "Sensitivity", "Spec", "Run metadata"],
+        {"sensitivity-ecdf", "environment-radar"},
+    ),
+    (
+        {"protocol": "optimality_gap", "num_contexts": 3},
+        ["Summary", "Environment", "Optimality gap (hidden)", "Spec", "Run metadata"],
+        {"optgap-ecdf-hidden", "optgap-intervals-hidden", "optgap-per-context-hidden"},
+    ),
+    (
+        {"protocol": "visibility", "num_train_contexts": 3, "num_test_contexts": 4},
+        ["Summary", "Environment", "Context visibility", "Spec", "Run metadata"],
+        {"test-ecdf", "test-histogram", "test-intervals"},
+    ),
+    (
+        {
+            "protocol": "train_test",
+            "modes": ["A", "C"],
+            "variants": ["hidden"],
+            "num_test_contexts": 16,
+        },
+        ["Summary", "Environment", "Train/test modes", "Spec", "Run metadata"],
+        {"heatmap-A-hidden", "heatmap-C-hidden"},
+    ),
+    (
+        {"protocol": "tabular", "num_random": 2},
+        ["Summary", "Tabular cMDPs", "Spec", "Run metadata"],
+        {"tabular-gaps"},
+    ),
+]
+
+
+@pytest.mark.parametrize(("data", "expected_sections", "expected_figures"), PROTOCOLS)
+def test_every_protocol_runs_end_to_end(data, expected_sections, expected_figures, tmp_path):
+    spec = {**TINY, "seeds": 2, **data} if data["protocol"] != "tabular" else data
+    run, summary = run_experiment(spec, out=tmp_path / "run", progress=False)
+    assert summary.failed == [] and summary.remaining == []
+    assert sections(run) == expected_sections
+    figures = {p.stem for p in (run.path / "figures").glob("*.png")}
+    assert expected_figures <= figures
+    results = run.results()
+    assert not results.empty and np.all(np.isfinite(results["return"]))
+    if data["protocol"] == "sensitivity":
+        # 2 seeds x (2 features x 3 magnitudes); the default magnitude repeats the default context
+        assert len(results) == 2 * 6
+        assert set(results["feature"]) == {"length", "tau"}
+    if data["protocol"] == "tabular":
+        gaps = results.groupby("trial").apply(
+            lambda g: (g["optimal_return"] - g["oblivious_return"]).mean(), include_groups=False
+        )
+        assert gaps["paper 3-state cMDP"] == pytest.approx(3.0)
+
+
+def test_sensitivity_returns_change_with_the_context(tmp_path):
+    spec = {**TINY, "max_steps": 200, "eval_episodes": 20, "seeds": 1, "protocol": "sensitivity"}
+    spec.update(features=["length"], magnitudes=[0.1, 4.0])
+    run, _ = run_experiment(spec, out=tmp_path / "run", progress=False, report=False)
+    by_magnitude = run.results().groupby("magnitude")["return"].mean()
+    # a random policy keeps a 10x longer pole (slower to fall) up much longer
+    assert by_magnitude[4.0] > 1.5 * by_magnitude[0.1]
+
+
+VISIBILITY = {**TINY, "protocol": "visibility", "seeds": 4, "batch_size": 1, "variants": ["hidden"]}
+VISIBILITY.update(num_train_contexts=2, num_test_contexts=3)
+
+
+def test_interrupted_run_resumes_to_the_same_results(tmp_path):
+    whole, _ = run_experiment(VISIBILITY, out=tmp_path / "whole", progress=False, report=False)
+    part, summary = run_experiment(
+        VISIBILITY, out=tmp_path / "part", progress=False, report=False, max_chunks=2
+    )
+    assert summary.ran == [0, 1] and summary.remaining == [2, 3]
+    first = (part.path / "results" / "chunk-0000.parquet").read_bytes()
+    resumed, summary = resume(part.path, progress=False)
+    assert summary.skipped == [0, 1] and summary.ran == [2, 3]
+    assert (part.path / "results" / "chunk-0000.parquet").read_bytes() == first  # not redone
+    columns = ["trial", "context_index", "return"]
+    pd.testing.assert_frame_equal(resumed.results()[columns], whole.results()[columns])
+    assert (part.path / "report.html").exists()
+
+
+def test_failed_chunk_is_recorded_and_retried_on_resume(tmp_path):
+    run, _ = run_experiment(VISIBILITY, out=tmp_path / "run", progress=False, max_chunks=0)
+    plan = expand(run.spec())
+
+    def flaky(plan_, chunk):
+        if chunk == plan_.chunks[1]:
+            raise RuntimeError("simulated out-of-memory")
+        return run_chunk(plan_, chunk)
+
+    summary = run_local(run, plan, progress=False, chunk_runner=flaky)
+    assert summary.failed == [1] and summary.ran == [0, 2, 3]
+    (failure,) = run.failures()
+    assert "simulated out-of-memory" in failure["error"]
+    assert failure["trials"] == [plan.trials[plan.chunks[1][0]].id]
+    report(run.path)
+    assert "Failures" in sections(run)
+    _, summary = resume(run.path, progress=False)
+    assert summary.ran == [1] and run.failures() == []
+    assert "Failures" not in sections(run)
+
+
+def test_atomic_writes_leave_no_partial_results(tmp_path):
+    run, _ = run_experiment(VISIBILITY, out=tmp_path / "run", progress=False, max_chunks=1)
+    # a crash while writing leaves a temporary file that never counts as a finished chunk
+    (run.path / "results" / ".chunk-0001.parquet.123.tmp").write_bytes(b"PAR1 half")
+    assert run.finished() == {0}
+
+    def crash(temporary):
+        with open(temporary, "wb") as handle:
+            handle.write(b"half")
+        raise KeyboardInterrupt
+
+    target = run.path / "results" / "chunk-0002.parquet"
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write(target, crash)
+    assert not target.exists() and run.finished() == {0}
+
+
+def test_existing_run_directory_is_not_overwritten(tmp_path):
+    run_experiment({"protocol": "tabular", "num_random": 0}, out=tmp_path / "run", progress=False)
+    with pytest.raises(FileExistsError, match="--resume"):
+        run_experiment({"protocol": "tabular"}, out=tmp_path / "run", progress=False)
+    spec = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert "versions" in spec and "jax" in spec["versions"]
