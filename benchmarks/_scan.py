@@ -5,21 +5,28 @@ each step (split from one key) and its own parameters (context). The observation
 compiler cannot drop the simulation.
 """
 
+import os
 import time
 
-import jax
-import jax.numpy as jnp
+# One CPU device per core, so a benchmark can also run its copies split over the cores (set before jax
+# is imported; single-device figures are unaffected).
+CORES = os.cpu_count() or 1
+os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count={CORES}")
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
 
 
-def random_rollout(reset, step, sample_action, params, steps: int):
-    """A jitted function key → checksum: reset every copy, then ``steps`` random steps.
+def random_rollout(reset, step, sample_action, params, steps: int, devices: int = 1):
+    """A compiled function key → checksum: reset every copy, then ``steps`` random steps.
 
     ``reset(key, p) -> (state, obs)``, ``step(key, state, action, p) -> (state, obs)``; ``params`` is a
-    pytree with one leading entry per copy.
+    pytree with one leading entry per copy. With ``devices`` > 1 the copies are split evenly over that
+    many CPU devices (one per core) and run by one ``pmap``-compiled call.
     """
-    n = jax.tree_util.tree_leaves(params)[0].shape[0]
 
-    def run(key):
+    def run(key, params):
+        n = jax.tree_util.tree_leaves(params)[0].shape[0]
         reset_key, key = jax.random.split(key)
         state, _ = jax.vmap(reset)(jax.random.split(reset_key, n), params)
 
@@ -33,7 +40,12 @@ def random_rollout(reset, step, sample_action, params, steps: int):
         (_, _, total), _ = jax.lax.scan(body, (state, key, jnp.zeros(())), None, steps)
         return total
 
-    return jax.jit(run)
+    if devices == 1:
+        compiled = jax.jit(run)
+        return lambda key: compiled(key, params)
+    shards = jax.tree_util.tree_map(lambda x: x.reshape(devices, -1, *x.shape[1:]), params)
+    compiled = jax.pmap(run, devices=jax.devices()[:devices])
+    return lambda key: compiled(jax.random.split(key, devices), shards)
 
 
 def steps_per_second(run, n: int, steps: int, repeats: int = 3) -> tuple[float, float]:

@@ -14,7 +14,7 @@ import subprocess
 import sys
 
 import jax
-from _scan import random_rollout, steps_per_second
+from _scan import CORES, random_rollout, steps_per_second
 
 import contextrl as crl
 
@@ -56,17 +56,17 @@ def switching_contexts(env, n, spec, resample: bool):
     return reset, step, jax.numpy.zeros(n)
 
 
-def measure(env, n, steps, make=fixed_contexts, **kwargs):
+def measure(env, n, steps, make=fixed_contexts, devices=1, **kwargs):
     spec = LENGTHS if "length" in env.context_space.names else {}
     if not spec:
         name, f = next(iter(env.context_space.features.items()))
         spec = {name: crl.Uniform(f.lower, f.upper)}
     reset, step, params = make(env, n, spec, **kwargs)
-    run = random_rollout(reset, step, env.action_space.sample, params, steps)
+    run = random_rollout(reset, step, env.action_space.sample, params, steps, devices)
     return steps_per_second(run, n, steps)
 
 
-def gymnax_rate(copies: int, steps: int) -> float:
+def gymnax_rate(copies: int, steps: int, devices: int) -> float:
     python = GYMNAX_VENV / "bin" / "python"
     if not python.exists():
         subprocess.run([sys.executable, "-m", "venv", str(GYMNAX_VENV)], check=True)
@@ -117,6 +117,10 @@ def main() -> None:
         compile_s, rate = measure(cartpole, n, steps if n >= 64 else steps * 4)
         print(f"{n:>8} {compile_s:>10.2f} {rate:>12.3g}")
 
+    if CORES > 1:
+        compile_s, rate = measure(cartpole, 4096, steps, devices=CORES)
+        print(f"{4096:>8} {compile_s:>10.2f} {rate:>12.3g}  split over {CORES} cores")
+
     print("\nEvery environment at 4,096 copies")
     print(f"{'env':>22} {'steps/s':>12}")
     for env_id in [i for i in crl.registered("classic_control")]:
@@ -139,9 +143,14 @@ def main() -> None:
         print(f"{label:>28} {rate:>12.3g} steps/s  ({rate / fixed:.2f} × fixed)")
 
     if args.gymnax:
-        theirs = gymnax_rate(4096, steps)
-        print(f"\ngymnax CartPole, 4,096 copies with own lengths: {theirs:.3g} steps/s")
-        print(f"contextrl / gymnax = {fixed / theirs:.2f}")
+        print("\ngymnax CartPole in the same loop, 4,096 copies each with its own pole length")
+        for devices in sorted({1, CORES}):
+            ours = measure(cartpole, 4096, steps, devices=devices)[1]
+            theirs = gymnax_rate(4096, steps, devices)
+            print(
+                f"{devices} device(s): gymnax {theirs:.3g} steps/s, contextrl {ours:.3g} steps/s, "
+                f"contextrl / gymnax = {ours / theirs:.2f}"
+            )
 
 
 if __name__ == "__main__":

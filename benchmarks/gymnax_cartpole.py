@@ -12,6 +12,7 @@ from _scan import random_rollout, steps_per_second
 parser = argparse.ArgumentParser()
 parser.add_argument("--copies", type=int, default=4096)
 parser.add_argument("--steps", type=int, default=1000)
+parser.add_argument("--devices", type=int, default=1)
 args = parser.parse_args()
 
 env, default_params = gymnax.make("CartPole-v1")
@@ -29,5 +30,6 @@ def step(key, state, action, p):
     return state, obs
 
 
-run = random_rollout(reset, step, env.action_space(default_params).sample, params, args.steps)
+sample = env.action_space(default_params).sample
+run = random_rollout(reset, step, sample, params, args.steps, devices=args.devices)
 print(steps_per_second(run, args.copies, args.steps)[1])
