@@ -1,0 +1,103 @@
+"""Protocols with the real PPO agent (tiny budget), the Ray executor and the command line."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from contextrl.experiments import run_experiment
+from contextrl.experiments.commands import main as commands_main
+
+PPO_OPTIONS = {"total_timesteps": 2048, "num_envs": 4, "num_steps": 64, "hidden_sizes": [16, 16]}
+
+
+def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
+    spec = {
+        "protocol": "optimality_gap",
+        "num_contexts": 2,
+        "seeds": 2,
+        "variants": ["concat_varying"],
+        "agent_options": PPO_OPTIONS,
+        "max_steps": 100,
+        "eval_episodes": 2,
+        "bootstrap_reps": 100,
+    }
+    run, summary = run_experiment(spec, out=tmp_path / "run", progress=False)
+    assert summary.failed == []
+    results = run.results()
+    assert set(results["kind"]) == {"general", "specialist"}
+    assert len(results) == 2 * 2 + 2 * 2  # general: 2 seeds x 2 contexts; 2 specialists x 2 seeds
+    checkpoints = sorted(p.stem for p in (run.path / "checkpoints").glob("*.npz"))
+    assert checkpoints == sorted(results["trial"].unique())
+    curves = run.curves()
+    assert set(curves["trial"]) == set(results["trial"]) and curves["step"].max() == 2048
+    html = (run.path / "report.html").read_text()
+    assert "Optimality gap (concat_varying)" in html and "Probability that a specialist" in html
+
+
+def test_ray_executor_matches_local(tmp_path):
+    ray = pytest.importorskip("ray")
+    spec = {
+        "protocol": "visibility",
+        "agent": "random",
+        "variants": ["hidden"],
+        "seeds": 3,
+        "batch_size": 1,
+        "num_train_contexts": 2,
+        "num_test_contexts": 3,
+        "max_steps": 20,
+        "eval_episodes": 2,
+    }
+    local, _ = run_experiment(spec, out=tmp_path / "local", progress=False, report=False)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        remote, summary = run_experiment(
+            spec, out=tmp_path / "ray", executor="ray", progress=False, report=False
+        )
+    finally:
+        ray.shutdown()
+    assert sorted(summary.ran) == [0, 1, 2] and summary.failed == []
+    columns = ["trial", "context_index", "return"]
+    pd.testing.assert_frame_equal(remote.results()[columns], local.results()[columns])
+
+
+def test_cli_run_report_and_resume(tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["run", "visibility", "--agent", "random", "--variants", "hidden", "--seeds", "2"]
+    argv += ["--vary", "length=uniform:0.3:0.6", "--test", "length=uniform:0.1:1.0"]
+    argv += [
+        "--set",
+        "num_train_contexts=2",
+        "--set",
+        "num_test_contexts=3",
+        "--set",
+        "batch_size=1",
+    ]
+    argv += [
+        "--max-steps",
+        "20",
+        "--episodes",
+        "1",
+        "--out",
+        str(out),
+        "--quiet",
+        "--max-chunks",
+        "1",
+    ]
+    assert commands_main(argv) == 0
+    assert "contextrl run --resume" in capsys.readouterr().out
+    assert commands_main(["run", "--resume", str(out), "--quiet"]) == 0
+    results = pd.read_parquet(out / "results" / "chunk-0001.parquet")
+    lengths = results["ctx.length"].to_numpy()
+    assert np.all((lengths >= 0.1) & (lengths <= 1.0))
+    (out / "report.html").unlink()
+    assert commands_main(["report", str(out)]) == 0
+    assert (out / "report.html").exists()
+
+
+def test_cli_refuses_bad_input_with_one_line(tmp_path, capsys):
+    assert commands_main(["run", "visibility", "--env", "Nope", "--root", str(tmp_path)]) == 2
+    assert "unknown environment 'Nope'" in capsys.readouterr().err
+    assert commands_main(["run", "sensitivity", "--vary", "wheels", "--root", str(tmp_path)]) == 2
+    assert "wheels" in capsys.readouterr().err
+    assert commands_main(["report", str(tmp_path / "missing")]) == 2
+    assert not list(tmp_path.iterdir())
