@@ -181,6 +181,22 @@ class EpisodeLog:
         }
 
 
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class TrainResult:
+    """Trained parameters and training metrics (arrays; a leading axis per vmapped seed or agent).
+
+    ``metrics`` holds one row per logging period (an update for PPO): ``step`` (environment steps so
+    far), ``episode_return``/``episode_length`` (mean over episodes that ended in the period, NaN if
+    none), ``episodes_finished``, ``context_return`` (per context id of the training set), the
+    algorithm's losses; and ``episodes``, the most recent individual episodes: ``return``, ``length``,
+    ``context_id`` (−1: resampled), ``step`` at which it ended, ``total`` number finished.
+    """
+
+    params: Any
+    metrics: dict
+
+
 class Progress:
     """Periodic lines (steps done, steps/s, recent return) printed from inside a compiled loop.
 

@@ -27,6 +27,7 @@ import optax
 from contextrl.agents.common import (
     EpisodeLog,
     Progress,
+    TrainResult,
     anneal,
     check_env,
     contextual_env_factory,
@@ -127,21 +128,6 @@ class PPOConfig:
     @property
     def num_updates(self) -> int:
         return self.total_timesteps // (self.num_envs * self.num_steps)
-
-
-@jax.tree_util.register_dataclass
-@dataclasses.dataclass(frozen=True)
-class TrainResult:
-    """Trained parameters and training metrics (arrays; a leading axis per vmapped seed/agent).
-
-    ``metrics``: per update ``step``, ``episode_return``/``episode_length`` (mean of episodes ended in
-    the update, NaN if none), ``episodes_finished``, ``context_return`` (per context id),
-    ``actor_loss``, ``value_loss``, ``entropy``; and ``episodes``: the most recent episodes
-    (``return``, ``length``, ``context_id``, ``step`` at which it ended, ``total`` finished).
-    """
-
-    params: Any
-    metrics: dict
 
 
 @dataclasses.dataclass(frozen=True)

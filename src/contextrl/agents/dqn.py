@@ -1,0 +1,448 @@
+"""DQN with n-step returns, and C51 (distributional) as an option; the whole run one JAX function.
+
+    config = dqn.DQNConfig(distributional=True)          # C51
+    config = dqn.paper_config("CartPole")                # the paper's C51 hyper-parameters
+    train = dqn.make_train(config, env, train_contexts)
+    result = jax.jit(jax.vmap(train))(keys)
+
+``train(key, contexts=None)`` as in :mod:`contextrl.agents.ppo`. The run has three phases inside one
+compiled function: a warm-up of random actions that fills the replay buffer, then rows of
+(``train_frequency`` vector steps, one gradient step) repeated; each logging period is one metrics row.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from contextrl.agents.common import (
+    EpisodeLog,
+    Progress,
+    TrainResult,
+    check_env,
+    contextual_env_factory,
+    num_context_ids,
+)
+from contextrl.agents.networks import (
+    ConditionedMLP,
+    ConfigError,
+    ContextInput,
+    check_fraction,
+    check_hidden_sizes,
+    check_positive,
+    context_input,
+)
+from contextrl.agents.replay import Replay
+from contextrl.core.spaces import Discrete
+
+EXPLORATIONS = ("epsilon", "boltzmann")
+
+
+@dataclasses.dataclass(frozen=True)
+class DQNConfig:
+    """DQN / C51 hyper-parameters (defaults: a fast CartPole setting; see :func:`paper_config`)."""
+
+    total_timesteps: int = 100_000
+    """Environment steps over all copies, warm-up included; rounded down to whole logging periods."""
+    num_envs: int = 4
+    """Environment copies stepped in parallel."""
+    learning_rate: float = 1e-3
+    """Adam step size."""
+    buffer_size: int = 100_000
+    """Replay capacity in transitions (over all copies)."""
+    batch_size: int = 128
+    """Transitions per gradient step."""
+    gamma: float = 0.99
+    """Discount factor."""
+    n_step: int = 3
+    """Steps summed in each return before bootstrapping."""
+    learning_starts: int = 5000
+    """Random-action transitions collected before the first gradient step (paper: warmup)."""
+    train_frequency: int = 1
+    """Vector steps between gradient steps."""
+    tau: float = 1.0
+    """Target-network update rate (1: hard copy)."""
+    target_update_interval: int = 250
+    """Gradient steps between target updates."""
+    max_grad_norm: float = 10.0
+    """Global gradient-norm clip."""
+    exploration: str = "epsilon"
+    """"epsilon" (ε-greedy, linearly decayed) or "boltzmann" (softmax of Q / temperature)."""
+    start_epsilon: float = 1.0
+    """ε at the start of training (after warm-up)."""
+    end_epsilon: float = 0.05
+    """ε after the decay."""
+    exploration_fraction: float = 0.3
+    """Fraction of the run over which ε decays."""
+    temperature: float = 0.1
+    """Boltzmann temperature (paper: pi_temperature)."""
+    distributional: bool = False
+    """C51: learn a categorical return distribution instead of its mean."""
+    num_atoms: int = 51
+    """C51 atoms."""
+    v_min: float = -100.0
+    """C51 support lower end (paper: q_min_value)."""
+    v_max: float = 100.0
+    """C51 support upper end (paper: q_max_value)."""
+    hidden_sizes: tuple[int, ...] = (128, 128)
+    """Widths of the hidden layers."""
+    activation: str = "relu"
+    """Hidden activation: "relu" or "tanh"."""
+    context_obs: str = "hidden"
+    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
+    context_selector: str = "random"
+    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    log_every: int = 1000
+    """Environment steps per metrics row (rounded to whole gradient steps)."""
+    episode_log_size: int = 1000
+    """How many of the most recent episodes the result keeps individually."""
+    progress_every: int = 0
+    """Print a progress line every this many metrics rows (0: silent)."""
+
+    def __post_init__(self):
+        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+
+    def validate(self) -> None:
+        """Raise ConfigError for any value that cannot train."""
+        for name in (
+            "total_timesteps",
+            "num_envs",
+            "buffer_size",
+            "batch_size",
+            "n_step",
+            "train_frequency",
+            "target_update_interval",
+            "num_atoms",
+            "log_every",
+            "episode_log_size",
+        ):
+            check_positive(name, getattr(self, name), integer=True)
+        check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
+        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
+        for name in ("learning_rate", "max_grad_norm", "temperature"):
+            check_positive(name, getattr(self, name))
+        for name in ("gamma", "tau", "start_epsilon", "end_epsilon", "exploration_fraction"):
+            check_fraction(name, getattr(self, name))
+        if self.tau == 0:
+            raise ConfigError("tau must be > 0 (0 would never update the target network)")
+        if self.exploration not in EXPLORATIONS:
+            raise ConfigError(
+                f"exploration: unknown {self.exploration!r}; choose one of {list(EXPLORATIONS)}"
+            )
+        for name in ("v_min", "v_max"):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+            ):
+                raise ConfigError(f"{name} must be a finite number, got {value!r}")
+        if self.distributional and (self.v_min >= self.v_max or self.num_atoms < 2):
+            raise ConfigError(
+                f"C51 needs v_min < v_max and at least 2 atoms, got v_min={self.v_min}, "
+                f"v_max={self.v_max}, num_atoms={self.num_atoms}"
+            )
+        check_hidden_sizes(self.hidden_sizes, self.activation)
+        if self.buffer_size < self.num_envs * max(self.n_step, 2):
+            raise ConfigError(
+                f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
+                f"({self.num_envs} × {max(self.n_step, 2)})"
+            )
+        if self.num_updates < 1:
+            raise ConfigError(
+                f"total_timesteps ({self.total_timesteps}) leaves no gradient step after the "
+                f"warm-up ({self.warmup_steps * self.num_envs} transitions)"
+            )
+
+    @property
+    def warmup_steps(self) -> int:
+        """Vector steps of random actions before learning (at least n_step, to sample from)."""
+        return max(-(-self.learning_starts // self.num_envs), self.n_step)
+
+    @property
+    def updates_per_row(self) -> int:
+        return max(1, self.log_every // (self.num_envs * self.train_frequency))
+
+    @property
+    def num_rows(self) -> int:
+        remaining = self.total_timesteps - self.warmup_steps * self.num_envs
+        return max(remaining, 0) // (self.num_envs * self.train_frequency * self.updates_per_row)
+
+    @property
+    def num_updates(self) -> int:
+        return self.num_rows * self.updates_per_row
+
+
+# The paper's C51 settings (appendix table "Hyperparameters for algorithm and environment
+# combinations"): n_step 5, gamma 0.99, batch 128, lr 1e-3, soft target updates with tau 0.001,
+# 5000 warm-up frames, replay 100,000, Boltzmann exploration with temperature 0.1, 51 atoms.
+PAPER_C51 = {
+    "CartPole": dict(hidden_sizes=(256, 256), v_min=0.0, v_max=110.0),
+    "Acrobot": dict(hidden_sizes=(256, 256), v_min=-50.0, v_max=0.0),
+    "MountainCar": dict(hidden_sizes=(32, 32), v_min=-100.0, v_max=100.0),
+    "LunarLander": dict(hidden_sizes=(256, 256), v_min=-100.0, v_max=100.0),
+}
+
+
+def paper_config(env_name: str, **overrides: Any) -> DQNConfig:
+    """The paper's C51 configuration for CartPole, Acrobot, MountainCar or LunarLander."""
+    if env_name not in PAPER_C51:
+        raise ConfigError(f"no paper C51 setting for {env_name!r}; known: {sorted(PAPER_C51)}")
+    base = dict(
+        distributional=True,
+        num_envs=1,
+        n_step=5,
+        gamma=0.99,
+        batch_size=128,
+        learning_rate=1e-3,
+        tau=0.001,
+        target_update_interval=1,
+        learning_starts=5000,
+        buffer_size=100_000,
+        exploration="boltzmann",
+        temperature=0.1,
+        num_atoms=51,
+    )
+    return DQNConfig(**{**base, **PAPER_C51[env_name], **overrides})
+
+
+@dataclasses.dataclass(frozen=True)
+class _Networks:
+    q: ConditionedMLP
+    context: ContextInput
+    num_actions: int
+    atoms: jax.Array | None
+
+
+def _networks(config: DQNConfig, env, train_contexts) -> _Networks:
+    config.validate()
+    check_env(env, "DQN")
+    if not isinstance(env.action_space, Discrete):
+        raise ConfigError(f"DQN/C51 needs a Discrete action space; {env.name} has a continuous one")
+    obs_shape = env.observation_space.shape
+    if len(obs_shape) != 1:
+        raise ConfigError(f"DQN needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
+    context = context_input(config.context_obs, env.context_space, train_contexts)
+    num_actions = env.action_space.n
+    outputs = num_actions * (config.num_atoms if config.distributional else 1)
+    q = ConditionedMLP(
+        obs_shape[0],
+        outputs,
+        config.hidden_sizes,
+        context,
+        config.activation,
+        out_scale=1.0,
+    )
+    atoms = (
+        jnp.linspace(config.v_min, config.v_max, config.num_atoms)
+        if config.distributional
+        else None
+    )
+    return _Networks(q, context, num_actions, atoms)
+
+
+def _q_values(nets: _Networks, params, obs, context_vector):
+    """Expected returns per action, and the per-action atom logits for C51 (else None)."""
+    out = nets.q.apply(params, obs, context_vector)
+    if nets.atoms is None:
+        return out, None
+    logits = out.reshape(out.shape[:-1] + (nets.num_actions, nets.atoms.shape[0]))
+    return jnp.sum(jax.nn.softmax(logits) * nets.atoms, axis=-1), logits
+
+
+def init_params(config: DQNConfig, env, train_contexts: Any, key) -> dict:
+    """Freshly initialised Q-network parameters."""
+    return _networks(config, env, train_contexts).q.init(key)
+
+
+def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs = config.num_envs
+    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+    optimizer = optax.chain(
+        optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
+    )
+    decay_steps = max(1, int(config.exploration_fraction * config.num_updates))
+    warmup_transitions = config.warmup_steps * num_envs
+    progress = Progress(
+        "C51" if config.distributional else "DQN",
+        warmup_transitions + config.num_updates * config.train_frequency * num_envs,
+        config.progress_every,
+    )
+
+    def loss_fn(params, target_params, batch):
+        q, logits = _q_values(nets, params, batch["obs"], batch["context"])
+        action = batch["action"]
+        next_q, next_logits = _q_values(
+            nets, target_params, batch["next_obs"], batch["next_context"]
+        )
+        if nets.atoms is None:
+            target = batch["reward"] + batch["discount"] * next_q.max(axis=-1)
+            chosen = jnp.take_along_axis(q, action[:, None], axis=-1).squeeze(-1)
+            return jnp.mean((chosen - jax.lax.stop_gradient(target)) ** 2)
+        next_action = jnp.argmax(next_q, axis=-1)
+        next_probs = jax.nn.softmax(
+            jnp.take_along_axis(next_logits, next_action[:, None, None], axis=1).squeeze(1)
+        )
+        # Project the shifted support r + γ^n z back onto the atoms (linear interpolation).
+        shifted = batch["reward"][:, None] + batch["discount"][:, None] * nets.atoms[None, :]
+        spacing = (config.v_max - config.v_min) / (config.num_atoms - 1)
+        position = (jnp.clip(shifted, config.v_min, config.v_max) - config.v_min) / spacing
+        weight = jnp.clip(1.0 - jnp.abs(position[:, :, None] - jnp.arange(config.num_atoms)), 0, 1)
+        target = jax.lax.stop_gradient(jnp.einsum("bj,bji->bi", next_probs, weight))
+        chosen = jnp.take_along_axis(logits, action[:, None, None], axis=1).squeeze(1)
+        return -jnp.mean(jnp.sum(target * jax.nn.log_softmax(chosen), axis=-1))
+
+    def act(params, obs, context_vector, key, epsilon):
+        q, _ = _q_values(nets, params, obs, context_vector)
+        explore_key, random_key, boltzmann_key = jax.random.split(key, 3)
+        if config.exploration == "boltzmann":
+            return jax.random.categorical(boltzmann_key, q / config.temperature)
+        random_action = jax.random.randint(random_key, q.shape[:-1], 0, nets.num_actions)
+        explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
+        return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
+
+    def train(key, contexts: Any = None) -> TrainResult:
+        cenv = build_env(contexts)
+        key, init_key, reset_key = jax.random.split(key, 3)
+        params = nets.q.init(init_key)
+        opt_state = optimizer.init(params)
+        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
+        obs = timestep.obs
+        example = {
+            "obs": obs,
+            "context": context_of(env_state.context),
+            "action": jnp.zeros((num_envs,), jnp.int32),
+            "reward": jnp.zeros((num_envs,), jnp.float32),
+            "terminated": jnp.zeros((num_envs,), bool),
+            "done": jnp.zeros((num_envs,), bool),
+            "next_obs": obs,
+        }
+        replay = Replay.create(capacity, example)
+        log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
+
+        def env_step(carry, action_fn):
+            env_state, obs, replay, log, step, key = carry
+            key, action_key, step_key = jax.random.split(key, 3)
+            context_vector = context_of(env_state.context)
+            action = action_fn(obs, context_vector, action_key).astype(jnp.int32)
+            env_state, timestep = jax.vmap(cenv.step)(
+                jax.random.split(step_key, num_envs), env_state, action
+            )
+            step = step + num_envs
+            replay = replay.add(
+                {
+                    "obs": obs,
+                    "context": context_vector,
+                    "action": action,
+                    "reward": timestep.reward,
+                    "terminated": timestep.terminated,
+                    "done": timestep.done,
+                    "next_obs": timestep.final_obs,
+                }
+            )
+            log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
+            return env_state, timestep.obs, replay, log, step, key
+
+        def random_step(carry, _):
+            def random_action(obs, context_vector, key):
+                return jax.random.randint(key, (num_envs,), 0, nets.num_actions)
+
+            return env_step(carry, random_action), None
+
+        carry = (env_state, obs, replay, log, jnp.zeros((), jnp.int32), key)
+        env_state, obs, replay, log, step, key = jax.lax.scan(
+            random_step, carry, None, config.warmup_steps
+        )[0]
+        log, _ = log.close_period()  # warm-up episodes stay in the episode list, not the curve
+
+        def update(carry, update_index):
+            params, target_params, opt_state, env_state, obs, replay, log, step, key = carry
+            fraction = jnp.minimum(update_index / decay_steps, 1.0)
+            epsilon = config.start_epsilon + fraction * (config.end_epsilon - config.start_epsilon)
+
+            def policy_step(carry, _):
+                def greedy(obs, context_vector, key):
+                    return act(params, obs, context_vector, key, epsilon)
+
+                return env_step(carry, greedy), None
+
+            (env_state, obs, replay, log, step, key), _ = jax.lax.scan(
+                policy_step, (env_state, obs, replay, log, step, key), None, config.train_frequency
+            )
+            key, sample_key = jax.random.split(key)
+            batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
+            loss, grads = jax.value_and_grad(loss_fn)(params, target_params, batch)
+            updates, opt_state = optimizer.update(grads, opt_state, params)
+            params = optax.apply_updates(params, updates)
+            refresh = (update_index + 1) % config.target_update_interval == 0
+            target_params = jax.tree_util.tree_map(
+                lambda online, target: jnp.where(
+                    refresh, config.tau * online + (1 - config.tau) * target, target
+                ),
+                params,
+                target_params,
+            )
+            carry = (params, target_params, opt_state, env_state, obs, replay, log, step, key)
+            return carry, loss
+
+        def row(carry, row_index):
+            first = row_index * config.updates_per_row
+            carry, losses = jax.lax.scan(update, carry, first + jnp.arange(config.updates_per_row))
+            *rest, log, step, key = carry
+            log, metrics = log.close_period()
+            metrics["step"] = step
+            metrics["loss"] = losses.mean()
+            progress.report(row_index, step, metrics["episode_return"])
+            return (*rest, log, step, key), metrics
+
+        carry = (params, params, opt_state, env_state, obs, replay, log, step, key)
+        carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
+        params, log = carry[0], carry[6]
+        metrics["episodes"] = log.episodes()
+        return TrainResult(params, metrics)
+
+    return train
+
+
+def make_policy(
+    config: DQNConfig, env, train_contexts: Any, deterministic: bool = True
+) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
+    """``policy(params, obs, ctx, key) -> action``: greedy, or exploring (final ε or Boltzmann)."""
+    nets = _networks(config, env, train_contexts)
+    space = env.context_space
+
+    def policy(params, obs, ctx, key):
+        q, _ = _q_values(nets, params, obs, nets.context.vector(space, ctx))
+        if deterministic:
+            return jnp.argmax(q, axis=-1)
+        if config.exploration == "boltzmann":
+            return jax.random.categorical(key, q / config.temperature)
+        explore_key, random_key = jax.random.split(key)
+        random_action = jax.random.randint(random_key, (), 0, nets.num_actions)
+        explore = jax.random.uniform(explore_key) < config.end_epsilon
+        return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
+
+    return policy
+
+
+def q_values(config: DQNConfig, env, train_contexts: Any) -> Callable:
+    """``(params, obs, ctx) -> expected return per action``."""
+    nets = _networks(config, env, train_contexts)
+    space = env.context_space
+
+    def values(params, obs, ctx):
+        return _q_values(nets, params, obs, nets.context.vector(space, ctx))[0]
+
+    return values

@@ -1,0 +1,88 @@
+"""A replay buffer in JAX arrays with n-step returns, shared by DQN/C51 and SAC.
+
+Transitions are stored in time order per environment copy (shape ``(capacity, num_envs, ...)``), so an
+n-step return is gathered at sampling time: rewards are summed until the episode ends, and the target
+bootstraps from the last stored ``next_obs`` (the final observation when the episode was cut by the
+time limit, no bootstrap when it terminated).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Replay:
+    """Ring buffer of vector steps: ``data[name]`` has shape ``(capacity, num_envs, ...)``."""
+
+    data: dict
+    position: jax.Array
+    size: jax.Array
+
+    @classmethod
+    def create(cls, capacity: int, example: dict) -> Replay:
+        """An empty buffer for ``capacity`` vector steps shaped like ``example`` (one vector step)."""
+        data = {
+            name: jnp.zeros((capacity,) + jnp.shape(value), jnp.asarray(value).dtype)
+            for name, value in example.items()
+        }
+        zero = jnp.zeros((), jnp.int32)
+        return cls(data, zero, zero)
+
+    @property
+    def capacity(self) -> int:
+        return next(iter(self.data.values())).shape[0]
+
+    def add(self, transition: dict) -> Replay:
+        """Store one vector step (obs, context, action, reward, terminated, done, next_obs…)."""
+        data = {
+            name: buffer.at[self.position].set(transition[name])
+            for name, buffer in self.data.items()
+        }
+        return Replay(
+            data,
+            (self.position + 1) % self.capacity,
+            jnp.minimum(self.size + 1, self.capacity),
+        )
+
+    def sample(self, key, batch_size: int, n_step: int, gamma: float) -> dict:
+        """A batch of n-step transitions: ``obs``, ``context``, ``action``, ``reward`` (the discounted
+        n-step sum), ``discount`` (γ^steps, 0 after a termination), ``next_obs``, ``next_context``.
+
+        Only start points whose n following steps are all stored are drawn (the newest n−1 wait).
+        """
+        time_key, env_key = jax.random.split(key)
+        num_envs = self.data["reward"].shape[1]
+        valid = jnp.maximum(self.size - (n_step - 1), 1)
+        offset = jax.random.randint(time_key, (batch_size,), 0, valid)
+        start = (self.position - self.size + offset) % self.capacity
+        copy = jax.random.randint(env_key, (batch_size,), 0, num_envs)
+
+        def at(name, k):
+            return self.data[name][(start + k) % self.capacity, copy]
+
+        total = jnp.zeros((batch_size,), jnp.float32)
+        alive = jnp.ones((batch_size,), bool)
+        discount = jnp.zeros((batch_size,), jnp.float32)
+        next_obs = at("next_obs", 0)
+        for k in range(n_step):
+            reward, terminated, done = at("reward", k), at("terminated", k), at("done", k)
+            total = total + jnp.where(alive, gamma**k * reward, 0.0)
+            discount = jnp.where(alive, jnp.where(terminated, 0.0, gamma ** (k + 1)), discount)
+            next_obs = jnp.where(alive[:, None], at("next_obs", k), next_obs)
+            alive = alive & ~done
+        # Within one episode the context does not change, so the bootstrap uses the start's context.
+        context = at("context", 0)
+        return {
+            "obs": at("obs", 0),
+            "context": context,
+            "action": at("action", 0),
+            "reward": total,
+            "discount": discount,
+            "next_obs": next_obs,
+            "next_context": context,
+        }
