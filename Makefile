@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 .PHONY: install system-deps test run bench lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
-SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri chromium chromium-driver
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || python3 -m venv $(VENV)
@@ -25,7 +25,7 @@ test: system-deps install
 	$(PY) -m pytest -q
 
 run: install
-	$(PY) -m contextrl.demo
+	$(VENV)/bin/contextrl run quickstart
 
 bench: install
 	$(PY) benchmarks/bench_envs.py

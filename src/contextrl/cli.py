@@ -318,6 +318,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_describe(subparsers)
     add_docs(subparsers)
     add_render(subparsers)
+    # imported here: the experiment layer loads pandas and matplotlib, which `list` does not need
+    from contextrl.experiments.commands import add_report, add_run
+
+    add_run(subparsers)
+    add_report(subparsers)
     return parser
 
 
