@@ -122,3 +122,20 @@ def test_train_modes_lie_on_their_support_and_sampling_always_ends():
         if mode == "B":
             band = (x <= x0 + 0.1 * (x1 - x0) + 1e-6) | (y <= y0 + 0.1 * (y1 - y0) + 1e-6)
             assert np.all(band)
+
+
+def test_example_specs_are_valid():
+    from pathlib import Path
+
+    import yaml
+
+    files = sorted(Path(__file__).parent.parent.glob("examples/*.yaml"))
+    assert {f.stem.split("_")[0] for f in files} >= {
+        "sensitivity",
+        "optimality",
+        "visibility",
+        "train",
+    }
+    for file in files:
+        spec = prepare(yaml.safe_load(file.read_text()))
+        assert spec.protocol in file.stem.replace("-", "_") or spec.protocol == "tabular"

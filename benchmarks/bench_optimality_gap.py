@@ -1,0 +1,87 @@
+"""The paper's optimality-gap experiment at full size, timed: CartPole, pole length U(0.25, 0.75),
+64 training contexts, one general agent and 64 specialists per seed, 10 seeds, 100,000 steps each
+(650 agents), PPO with 64×64 networks, through the same `contextrl run` machinery (chunks of vmapped
+agents, Parquet results, report).
+
+    python benchmarks/bench_optimality_gap.py                 # full size
+    python benchmarks/bench_optimality_gap.py --max-chunks 1  # time one chunk, extrapolate the rest
+
+Prints a table of agents, environment steps, wall time, agents/s and steps/s, and the measured gap.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+
+import jax
+
+from contextrl.experiments import expand, prepare, run_experiment
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--contexts", type=int, default=64)
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--timesteps", type=int, default=100_000)
+    parser.add_argument("--num-envs", type=int, default=4)
+    parser.add_argument("--batch-size", type=int, default=128, help="agents per vmapped chunk")
+    parser.add_argument("--max-chunks", type=int, default=None, help="time only this many chunks")
+    parser.add_argument("--out", default=None, help="run directory (default: a temporary one)")
+    args = parser.parse_args()
+
+    spec = prepare(
+        {
+            "protocol": "optimality_gap",
+            "name": "bench-optimality-gap",
+            "env": "CartPole",
+            "train": {"length": {"uniform": [0.25, 0.75]}},
+            "num_contexts": args.contexts,
+            "seeds": args.seeds,
+            "variants": ["hidden"],
+            "agent": "ppo",
+            "agent_options": {
+                "total_timesteps": args.timesteps,
+                "num_envs": args.num_envs,
+                "hidden_sizes": [64, 64],
+            },
+            "eval_episodes": 10,
+            "batch_size": args.batch_size,
+            "bootstrap_reps": 2000,
+        }
+    )
+    plan = expand(spec)
+    out = args.out or tempfile.mkdtemp(prefix="bench-optgap-")
+    print(
+        f"device: {jax.devices()[0].device_kind}, {len(plan.trials)} agents in {len(plan.chunks)} chunks"
+    )
+    start = time.perf_counter()
+    run, summary = run_experiment(spec, out=f"{out}/run", max_chunks=args.max_chunks)
+    wall = time.perf_counter() - start
+    timings = run.timings()
+    done = sum(len(plan.chunks[int(c)]) for c in timings)
+    steps_per_agent = spec.agent_options["total_timesteps"]
+    rows = [
+        ("agents trained", f"{done} of {len(plan.trials)}"),
+        ("environment steps (training)", f"{done * steps_per_agent:.3g}"),
+        ("wall time incl. compile + report", f"{wall:.1f} s"),
+        ("chunk seconds (sum)", f"{sum(timings.values()):.1f} s"),
+        ("seconds per agent", f"{sum(timings.values()) / max(done, 1):.3f}"),
+        ("training steps/s", f"{done * steps_per_agent / max(sum(timings.values()), 1e-9):.3g}"),
+    ]
+    if done < len(plan.trials):
+        estimate = sum(timings.values()) / done * len(plan.trials)
+        rows.append(("extrapolated total (all agents)", f"{estimate / 60:.1f} min"))
+    for chunk, seconds in sorted(timings.items(), key=lambda kv: int(kv[0])):
+        rows.append((f"chunk {chunk} ({len(plan.chunks[int(chunk)])} agents)", f"{seconds:.1f} s"))
+    width = max(len(name) for name, _ in rows)
+    for name, value in rows:
+        print(f"{name:<{width}}  {value}")
+    print(f"report: {run.path / 'report.html'}")
+    if summary.failed:
+        print(f"failed chunks: {summary.failed}")
+
+
+if __name__ == "__main__":
+    main()
