@@ -44,6 +44,8 @@ BAD_SPECS = [
     ({"protocol": "tabular", "states": 30}, "too many"),
     ({"protocol": "visibility", "agent_options": {"learning_rat": 0.1}}, "learning_rat"),
     ({"protocol": "visibility", "agent_options": {"num_envs": -1}}, "num_envs"),
+    ({"protocol": "visibility", "agent": "c51", "agent_options": {"num_atoms": 1}}, "atoms"),
+    ({"protocol": "visibility", "agent": "dqn", "agent_options": {"clip_eps": 0.2}}, "clip_eps"),
 ]
 
 

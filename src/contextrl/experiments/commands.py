@@ -155,7 +155,7 @@ def add_run(subparsers) -> None:
     parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *PROTOCOLS]}")
     parser.add_argument("--config", help="a YAML spec (see examples/*.yaml)")
     parser.add_argument("--env", help="environment id (contextrl list)")
-    parser.add_argument("--agent", help="ppo or random")
+    parser.add_argument("--agent", help="ppo, dqn, c51 or random")
     parser.add_argument(
         "--variants", help="comma-separated: hidden,concat_all,concat_varying,gated"
     )

@@ -26,7 +26,7 @@ from contextrl.context.distributions import (
 from contextrl.context.features import ContextError
 
 PROTOCOLS = ("sensitivity", "optimality_gap", "visibility", "train_test", "tabular")
-AGENTS = ("ppo", "random")
+AGENTS = ("ppo", "dqn", "c51", "random")
 VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")
 DISTRIBUTION_NAMES = {
     "uniform": Uniform,

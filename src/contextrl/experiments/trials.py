@@ -1,7 +1,7 @@
 """Run one chunk of trials: every trial of the chunk trains and is evaluated in one vmapped call.
 
-The agent adapter hides what differs between agents ("ppo": contextrl's PPO; "random": uniform random
-actions, a no-training baseline and the cheap agent for smoke tests). A chunk returns plain tables, so
+The agent adapter hides what differs between agents ("ppo", "dqn", "c51": contextrl's agents; "random":
+uniform random actions, a no-training baseline and the cheap agent for smoke tests). A chunk returns plain tables, so
 it can run in this process or on a Ray worker.
 """
 
@@ -29,28 +29,47 @@ class ChunkResult:
     seconds: float
 
 
-def ppo_config(spec, variant: str):
-    """The PPO config of a spec's agent options with this visibility variant (validated)."""
-    from contextrl.agents import ConfigError, ppo
+def agent_config(spec, variant: str):
+    """The agent's config from the spec's agent options with this visibility variant (validated).
+
+    "ppo": PPOConfig; "dqn": DQNConfig; "c51": the paper's C51 setting for the environment where the
+    paper has one (else DQNConfig with the distributional head), options overriding either.
+    """
+    from contextrl.agents import ConfigError, dqn, ppo
 
     options = dict(spec.agent_options)
-    fields = {f.name for f in dataclasses.fields(ppo.PPOConfig)}
+    config_type = ppo.PPOConfig if spec.agent == "ppo" else dqn.DQNConfig
+    fields = {f.name for f in dataclasses.fields(config_type)}
     unknown = sorted(set(options) - fields)
     if unknown:
-        raise SpecError(f"agent_options: unknown PPO option(s) {unknown}; valid: {sorted(fields)}")
+        raise SpecError(
+            f"agent_options: unknown {spec.agent} option(s) {unknown}; valid: {sorted(fields)}"
+        )
+    options["context_obs"] = variant
     try:
-        config = ppo.PPOConfig(**options, context_obs=variant)
+        if spec.agent == "c51" and spec.env in dqn.PAPER_C51:
+            config = dqn.paper_config(spec.env, **options)
+        elif spec.agent == "c51":
+            config = dqn.DQNConfig(**{"distributional": True, **options})
+        else:
+            config = config_type(**options)
         config.validate()
     except (ConfigError, TypeError) as error:
         raise SpecError(f"agent_options: {error}") from None
     return config
 
 
+def _agent_module(name: str):
+    from contextrl.agents import dqn, ppo
+
+    return ppo if name == "ppo" else dqn
+
+
 def check_agent(spec) -> None:
     """Refuse bad agent options before anything runs."""
-    if spec.agent == "ppo":
+    if spec.agent != "random":
         for variant in spec.variants:
-            ppo_config(spec, variant)
+            agent_config(spec, variant)
     elif spec.agent_options:
         raise SpecError(
             f"agent_options: the {spec.agent} agent takes none, got {spec.agent_options}"
@@ -90,11 +109,10 @@ def _compiled(spec, variant: str, env, template):
             return returns, jax.numpy.zeros(0), jax.numpy.zeros(0), None
 
     else:
-        from contextrl.agents import ppo
-
-        config = ppo_config(spec, variant)
-        train = ppo.make_train(config, env, template)
-        policy = ppo.make_policy(config, env, template)
+        agent = _agent_module(spec.agent)
+        config = agent_config(spec, variant)
+        train = agent.make_train(config, env, template)
+        policy = agent.make_policy(config, env, template)
 
         def one(key, train_ctx, test_ctx):
             train_key, eval_key = jax.random.split(key)
