@@ -7,7 +7,7 @@ policy = ppo.make_policy(config, env, train_contexts)
 returns = evaluate(policy, params, env, test_contexts, episodes=10, key=key)
 """
 
-from contextrl.agents import dqn, ppo
+from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_checkpoint
 from contextrl.agents.evaluation import evaluate, evaluate_episodes
 from contextrl.agents.networks import CONTEXT_MODES, ConfigError
@@ -21,5 +21,6 @@ __all__ = [
     "load_checkpoint",
     "dqn",
     "ppo",
+    "sac",
     "save_checkpoint",
 ]

@@ -1,0 +1,445 @@
+"""Soft Actor-Critic for continuous actions (twin critics, tanh-squashed Gaussian policy, automatic
+entropy tuning); the whole run one JAX function.
+
+    config = sac.SACConfig(context_obs="concat_varying")
+    config = sac.paper_config("Pendulum")               # the paper's SAC hyper-parameters
+    train = sac.make_train(config, env, train_contexts)
+    result = jax.jit(jax.vmap(train))(keys)
+
+``train(key, contexts=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
+actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
+followed by one actor (and temperature) update; each logging period is one metrics row.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from contextrl.agents.common import (
+    EpisodeLog,
+    Progress,
+    TrainResult,
+    check_env,
+    contextual_env_factory,
+    num_context_ids,
+)
+from contextrl.agents.networks import (
+    ConditionedMLP,
+    ConfigError,
+    ContextInput,
+    check_fraction,
+    check_hidden_sizes,
+    check_positive,
+    context_input,
+)
+from contextrl.agents.replay import Replay
+from contextrl.core.spaces import Box
+
+LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig:
+    """SAC hyper-parameters (defaults: CleanRL's continuous-control settings)."""
+
+    total_timesteps: int = 50_000
+    """Environment steps over all copies, warm-up included; rounded down to whole logging periods."""
+    num_envs: int = 1
+    """Environment copies stepped in parallel."""
+    buffer_size: int = 100_000
+    """Replay capacity in transitions (over all copies)."""
+    batch_size: int = 256
+    """Transitions per gradient step."""
+    gamma: float = 0.99
+    """Discount factor."""
+    n_step: int = 1
+    """Steps summed in each return before bootstrapping."""
+    tau: float = 0.005
+    """Target-critic soft update rate (every critic update)."""
+    policy_lr: float = 3e-4
+    """Adam step size of the actor (and of the temperature)."""
+    q_lr: float = 1e-3
+    """Adam step size of the critics."""
+    learning_starts: int = 5000
+    """Random-action transitions collected before learning (paper: warmup_num_frames)."""
+    policy_frequency: int = 2
+    """Critic updates (one vector step each) per actor update (paper: pi_update_freq)."""
+    alpha: float = 0.2
+    """Entropy temperature (the initial one when autotune is on)."""
+    autotune: bool = True
+    """Tune the temperature towards an entropy of −(action dimensions)."""
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    """Widths of the hidden layers of actor and critics."""
+    activation: str = "relu"
+    """Hidden activation: "relu" or "tanh"."""
+    context_obs: str = "hidden"
+    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
+    context_selector: str = "random"
+    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    log_every: int = 1000
+    """Environment steps per metrics row (rounded to whole actor updates)."""
+    episode_log_size: int = 1000
+    """How many of the most recent episodes the result keeps individually."""
+    progress_every: int = 0
+    """Print a progress line every this many metrics rows (0: silent)."""
+
+    def __post_init__(self):
+        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+
+    def validate(self) -> None:
+        """Raise ConfigError for any value that cannot train."""
+        for name in (
+            "total_timesteps",
+            "num_envs",
+            "buffer_size",
+            "batch_size",
+            "n_step",
+            "policy_frequency",
+            "log_every",
+            "episode_log_size",
+        ):
+            check_positive(name, getattr(self, name), integer=True)
+        check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
+        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
+        for name in ("policy_lr", "q_lr", "alpha"):
+            check_positive(name, getattr(self, name))
+        for name in ("gamma", "tau"):
+            check_fraction(name, getattr(self, name))
+        if self.tau == 0:
+            raise ConfigError("tau must be > 0 (0 would never update the target critics)")
+        check_hidden_sizes(self.hidden_sizes, self.activation)
+        if self.buffer_size < self.num_envs * max(self.n_step, 2):
+            raise ConfigError(
+                f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
+                f"({self.num_envs} × {max(self.n_step, 2)})"
+            )
+        if self.num_rows < 1:
+            raise ConfigError(
+                f"total_timesteps ({self.total_timesteps}) leaves no full logging period after the "
+                f"warm-up ({self.warmup_steps * self.num_envs} transitions; log_every "
+                f"{self.log_every})"
+            )
+
+    @property
+    def warmup_steps(self) -> int:
+        """Vector steps of random actions before learning (at least n_step, to sample from)."""
+        return max(-(-self.learning_starts // self.num_envs), self.n_step)
+
+    @property
+    def updates_per_row(self) -> int:
+        return max(1, self.log_every // (self.num_envs * self.policy_frequency))
+
+    @property
+    def num_rows(self) -> int:
+        remaining = self.total_timesteps - self.warmup_steps * self.num_envs
+        per_row = self.num_envs * self.policy_frequency * self.updates_per_row
+        return max(remaining, 0) // per_row
+
+
+def paper_config(env_name: str, **overrides: Any) -> SACConfig:
+    """The paper's SAC settings (appendix table) for Pendulum, DmcWalker or DmcQuadruped."""
+    settings = {
+        "Pendulum": {},
+        "DmcWalker": {},
+        "DmcQuadruped": {},
+    }
+    if env_name not in settings:
+        raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(settings)}")
+    base = dict(
+        n_step=5,
+        gamma=0.9,
+        alpha=0.2,
+        autotune=False,
+        batch_size=128,
+        policy_lr=1e-3,
+        q_lr=1e-3,
+        tau=0.001,
+        learning_starts=5000,
+        policy_frequency=4,
+        buffer_size=100_000,
+        hidden_sizes=(256, 256),
+    )
+    return SACConfig(**{**base, **settings[env_name], **overrides})
+
+
+@dataclasses.dataclass(frozen=True)
+class _Networks:
+    actor: ConditionedMLP
+    critic: ConditionedMLP
+    context: ContextInput
+    action_low: np.ndarray
+    action_high: np.ndarray
+
+    @property
+    def action_size(self) -> int:
+        return self.action_low.shape[0]
+
+    def to_env(self, squashed):
+        """Map a squashed action in [−1, 1] to the environment's bounds."""
+        return self.action_low + (squashed + 1.0) * 0.5 * (self.action_high - self.action_low)
+
+
+def _networks(config: SACConfig, env, train_contexts) -> _Networks:
+    config.validate()
+    check_env(env, "SAC")
+    space = env.action_space
+    if not isinstance(space, Box) or len(space.shape) != 1:
+        raise ConfigError(f"SAC needs a 1-D Box action space; {env.name} has {space!r}")
+    if not (np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))):
+        raise ConfigError(
+            f"SAC squashes actions into bounds; {env.name}'s action bounds are infinite"
+        )
+    obs_shape = env.observation_space.shape
+    if len(obs_shape) != 1:
+        raise ConfigError(f"SAC needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
+    context = context_input(config.context_obs, env.context_space, train_contexts)
+    common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
+    action_size = space.shape[0]
+    actor = ConditionedMLP(obs_shape[0], 2 * action_size, out_scale=0.01, **common)
+    critic = ConditionedMLP(obs_shape[0] + action_size, 1, out_scale=1.0, **common)
+    return _Networks(actor, critic, context, space.low, space.high)
+
+
+def _actor_head(nets: _Networks, params, obs, context_vector):
+    out = nets.actor.apply(params, obs, context_vector)
+    mean, log_std = jnp.split(out, 2, axis=-1)
+    log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(log_std) + 1.0)
+    return mean, log_std
+
+
+def _sample_action(nets: _Networks, params, obs, context_vector, key):
+    """A squashed action in [−1, 1] and its log-probability (tanh change of variables)."""
+    mean, log_std = _actor_head(nets, params, obs, context_vector)
+    std = jnp.exp(log_std)
+    noise = jax.random.normal(key, mean.shape)
+    pre_tanh = mean + std * noise
+    action = jnp.tanh(pre_tanh)
+    log_prob = jnp.sum(
+        -0.5 * noise**2 - log_std - 0.5 * jnp.log(2 * jnp.pi) - jnp.log(1 - action**2 + 1e-6),
+        axis=-1,
+    )
+    return action, log_prob
+
+
+def _twin_q(nets: _Networks, critic_params, obs, context_vector, action):
+    """Both critics' values, shape (2, batch)."""
+    inputs = jnp.concatenate([obs, action], axis=-1)
+    return jax.vmap(lambda p: nets.critic.apply(p, inputs, context_vector).squeeze(-1))(
+        critic_params
+    )
+
+
+def init_params(config: SACConfig, env, train_contexts: Any, key) -> dict:
+    """Freshly initialised actor, twin critics and log-temperature."""
+    return _init(_networks(config, env, train_contexts), config, key)
+
+
+def _init(nets: _Networks, config: SACConfig, key) -> dict:
+    actor_key, critic_key = jax.random.split(key)
+    critics = [nets.critic.init(k) for k in jax.random.split(critic_key, 2)]
+    return {
+        "actor": nets.actor.init(actor_key),
+        "critic": jax.tree_util.tree_map(lambda *x: jnp.stack(x), *critics),
+        "log_alpha": jnp.asarray(math.log(config.alpha), jnp.float32),
+    }
+
+
+def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs = config.num_envs
+    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+    actor_optimizer = optax.adam(config.policy_lr)
+    critic_optimizer = optax.adam(config.q_lr)
+    alpha_optimizer = optax.adam(config.policy_lr)
+    target_entropy = -float(nets.action_size)
+    progress = Progress(
+        "SAC",
+        (config.warmup_steps + config.num_rows * config.updates_per_row * config.policy_frequency)
+        * num_envs,
+        config.progress_every,
+    )
+
+    def critic_loss(critic_params, target_critic, actor_params, log_alpha, batch, key):
+        next_action, next_log_prob = _sample_action(
+            nets, actor_params, batch["next_obs"], batch["next_context"], key
+        )
+        next_q = _twin_q(
+            nets, target_critic, batch["next_obs"], batch["next_context"], next_action
+        ).min(axis=0)
+        soft_value = next_q - jnp.exp(log_alpha) * next_log_prob
+        target = jax.lax.stop_gradient(batch["reward"] + batch["discount"] * soft_value)
+        q = _twin_q(nets, critic_params, batch["obs"], batch["context"], batch["action"])
+        return 0.5 * jnp.mean(jnp.sum((q - target[None]) ** 2, axis=0))
+
+    def actor_loss(actor_params, critic_params, log_alpha, batch, key):
+        action, log_prob = _sample_action(nets, actor_params, batch["obs"], batch["context"], key)
+        q = _twin_q(nets, critic_params, batch["obs"], batch["context"], action).min(axis=0)
+        return jnp.mean(jnp.exp(log_alpha) * log_prob - q), log_prob
+
+    def train(key, contexts: Any = None) -> TrainResult:
+        cenv = build_env(contexts)
+        key, init_key, reset_key = jax.random.split(key, 3)
+        params = _init(nets, config, init_key)
+        target_critic = params["critic"]
+        opt_states = (
+            actor_optimizer.init(params["actor"]),
+            critic_optimizer.init(params["critic"]),
+            alpha_optimizer.init(params["log_alpha"]),
+        )
+        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
+        obs = timestep.obs
+        example = {
+            "obs": obs,
+            "context": context_of(env_state.context),
+            "action": jnp.zeros((num_envs, nets.action_size), jnp.float32),
+            "reward": jnp.zeros((num_envs,), jnp.float32),
+            "terminated": jnp.zeros((num_envs,), bool),
+            "done": jnp.zeros((num_envs,), bool),
+            "next_obs": obs,
+        }
+        replay = Replay.create(capacity, example)
+        log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
+
+        def env_step(carry, action_fn):
+            env_state, obs, replay, log, step, key = carry
+            key, action_key, step_key = jax.random.split(key, 3)
+            context_vector = context_of(env_state.context)
+            action = action_fn(obs, context_vector, action_key)
+            env_state, timestep = jax.vmap(cenv.step)(
+                jax.random.split(step_key, num_envs), env_state, nets.to_env(action)
+            )
+            step = step + num_envs
+            replay = replay.add(
+                {
+                    "obs": obs,
+                    "context": context_vector,
+                    "action": action,
+                    "reward": timestep.reward,
+                    "terminated": timestep.terminated,
+                    "done": timestep.done,
+                    "next_obs": timestep.final_obs,
+                }
+            )
+            log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
+            return env_state, timestep.obs, replay, log, step, key
+
+        def random_step(carry, _):
+            def uniform(obs, context_vector, key):
+                return jax.random.uniform(key, (num_envs, nets.action_size), minval=-1, maxval=1)
+
+            return env_step(carry, uniform), None
+
+        carry = (env_state, obs, replay, log, jnp.zeros((), jnp.int32), key)
+        env_state, obs, replay, log, step, key = jax.lax.scan(
+            random_step, carry, None, config.warmup_steps
+        )[0]
+        log, _ = log.close_period()  # warm-up episodes stay in the episode list, not the curve
+
+        def critic_round(carry, _):
+            params, target_critic, opt_states, env_state, obs, replay, log, step, key = carry
+
+            def explore(obs, context_vector, key):
+                return _sample_action(nets, params["actor"], obs, context_vector, key)[0]
+
+            env_state, obs, replay, log, step, key = env_step(
+                (env_state, obs, replay, log, step, key), explore
+            )
+            key, sample_key, target_key = jax.random.split(key, 3)
+            batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
+            loss, grads = jax.value_and_grad(critic_loss)(
+                params["critic"],
+                target_critic,
+                params["actor"],
+                params["log_alpha"],
+                batch,
+                target_key,
+            )
+            updates, critic_state = critic_optimizer.update(grads, opt_states[1], params["critic"])
+            params = {**params, "critic": optax.apply_updates(params["critic"], updates)}
+            target_critic = optax.incremental_update(params["critic"], target_critic, config.tau)
+            opt_states = (opt_states[0], critic_state, opt_states[2])
+            carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
+            return carry, (loss, batch)
+
+        def update(carry, _):
+            carry, (critic_losses, batches) = jax.lax.scan(
+                critic_round, carry, None, config.policy_frequency
+            )
+            params, target_critic, opt_states, *rest, key = carry
+            batch = jax.tree_util.tree_map(lambda x: x[-1], batches)
+            key, actor_key = jax.random.split(key)
+            (loss, log_prob), grads = jax.value_and_grad(actor_loss, has_aux=True)(
+                params["actor"], params["critic"], params["log_alpha"], batch, actor_key
+            )
+            updates, actor_state = actor_optimizer.update(grads, opt_states[0], params["actor"])
+            params = {**params, "actor": optax.apply_updates(params["actor"], updates)}
+            alpha_state = opt_states[2]
+            if config.autotune:
+                entropy_gap = jax.lax.stop_gradient(log_prob + target_entropy).mean()
+                alpha_grad = -entropy_gap  # d/d(log α) of −log α · (log π + H_target)
+                updates, alpha_state = alpha_optimizer.update(
+                    alpha_grad, alpha_state, params["log_alpha"]
+                )
+                params = {**params, "log_alpha": params["log_alpha"] + updates}
+            opt_states = (actor_state, opt_states[1], alpha_state)
+            carry = (params, target_critic, opt_states, *rest, key)
+            return carry, (critic_losses.mean(), loss, jnp.exp(params["log_alpha"]))
+
+        def row(carry, row_index):
+            carry, (critic_losses, actor_losses, alphas) = jax.lax.scan(
+                update, carry, None, config.updates_per_row
+            )
+            *rest, log, step, key = carry
+            log, metrics = log.close_period()
+            metrics["step"] = step
+            metrics["critic_loss"] = critic_losses.mean()
+            metrics["actor_loss"] = actor_losses.mean()
+            metrics["alpha"] = alphas[-1]
+            progress.report(row_index, step, metrics["episode_return"])
+            return (*rest, log, step, key), metrics
+
+        carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
+        carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
+        params, log = carry[0], carry[6]
+        metrics["episodes"] = log.episodes()
+        return TrainResult(params, metrics)
+
+    return train
+
+
+def make_policy(
+    config: SACConfig, env, train_contexts: Any, deterministic: bool = True
+) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
+    """``policy(params, obs, ctx, key) -> action`` in the environment's bounds (tanh of the mean when
+    deterministic, a sample otherwise)."""
+    nets = _networks(config, env, train_contexts)
+    space = env.context_space
+
+    def policy(params, obs, ctx, key):
+        context_vector = nets.context.vector(space, ctx)
+        if deterministic:
+            mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
+            return nets.to_env(jnp.tanh(mean))
+        action, _ = _sample_action(nets, params["actor"], obs, context_vector, key)
+        return nets.to_env(action)
+
+    return policy
+
+
+def action_mean(config: SACConfig, env, train_contexts: Any) -> Callable:
+    """``(params, obs, ctx) -> deterministic action`` (for inspecting the context's effect)."""
+    policy = make_policy(config, env, train_contexts, deterministic=True)
+    return lambda params, obs, ctx: policy(params, obs, ctx, None)
