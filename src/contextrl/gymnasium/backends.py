@@ -179,36 +179,36 @@ class JaxBackend:
         words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
         return self._unpack_start(np.asarray(self.programs.start_with(words)))
 
-    def action_words(self, action: Any) -> np.ndarray:
+    def _write_action(self, action: Any, slot: np.ndarray) -> None:
+        """Validate ``action`` and write its bits into the input vector's action slot."""
         if self._discrete:
             try:
                 index = operator.index(action)
             except TypeError:
-                index = None
-            if index is None or not 0 <= index < self.action_space.n:
+                index = -1
+            if not 0 <= index < self.action_space.n:
                 raise ValueError(
                     f"action must be an integer in [0, {self.action_space.n}), got {action!r}"
                 )
-            return np.array([index], np.uint32)
+            slot[0] = index
+            return
         values = np.asarray(action, np.float32)
         if values.shape != self.action_space.shape or not np.all(np.isfinite(values)):
             raise ValueError(
                 f"action must be a finite float array of shape {self.action_space.shape}, "
                 f"got {action!r}"
             )
-        return values.ravel().view(np.uint32)
+        slot[:] = values.ravel().view(np.uint32)
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        size = self.packer.size
-        buffer = self._buffer
+        size, buffer = self.packer.size, self._buffer
+        self._write_action(action, buffer[size:])
         buffer[:size] = self.carry
-        buffer[size:] = self.action_words(action)
         out = np.asarray(self.programs.step(buffer))
         self.carry = out[:size]
-        tail = out[size:]
-        obs = tail[: self.obs_size].view(np.float32).copy()
-        reward = float(tail[self.obs_size : self.obs_size + 1].view(np.float32)[0])
-        return obs, reward, bool(tail[-2]), bool(tail[-1])
+        values = out.view(np.float32)
+        end = size + self.obs_size
+        return values[size:end].copy(), float(values[end]), bool(out[-2]), bool(out[-1])
 
     def physics_and_context(self) -> tuple[Any, Any]:
         """The current physics state and context as NumPy values (for rendering)."""

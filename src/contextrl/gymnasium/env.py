@@ -146,7 +146,7 @@ class ContextualGymEnv(gymnasium.Env):
         self._key_bits: np.ndarray | None = None
         self._episode = 0
         self._info: dict[str, Any] = {}
-        self._context_vector: np.ndarray | None = None
+        self._values_of_member: dict[int, dict[str, Any]] = {}
 
     def _observation_space(self) -> gymnasium.spaces.Space:
         flat = self.backend.flat_space
@@ -217,12 +217,19 @@ class ContextualGymEnv(gymnasium.Env):
         )
         if override is not None:
             index = -1
-        self._context_vector = context_vector
         self._info = {
             "context_id": self.schedule.user_id(index),
-            "context": self.schedule.values_dict(context_vector),
+            "context": self._values(index, context_vector),
         }
         return self._observation(obs), self._fresh_info()
+
+    def _values(self, index: int, context_vector: np.ndarray) -> dict[str, Any]:
+        """Feature values for ``info``; a set member's are converted once and remembered."""
+        if index < 0:
+            return self.schedule.values_dict(context_vector)
+        if index not in self._values_of_member:
+            self._values_of_member[index] = self.schedule.values_dict(context_vector)
+        return self._values_of_member[index]
 
     def _fresh_info(self) -> dict[str, Any]:
         """A new info dict per call (users keep them; gymnasium's checker insists)."""

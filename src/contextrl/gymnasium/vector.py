@@ -30,7 +30,7 @@ from contextrl.context.features import ContextError
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
 from contextrl.core.spaces import Discrete
-from contextrl.gymnasium.backends import episode_keys, shared_program
+from contextrl.gymnasium.backends import shared_program
 from contextrl.gymnasium.env import ContextualGymEnv, build_env, check_max_steps, render_fps
 from contextrl.gymnasium.packing import Packer
 from contextrl.gymnasium.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
@@ -56,41 +56,42 @@ class VectorPrograms:
     def _global_episode(self, copy, episode):
         return copy.astype(jnp.int32) + episode * self.num_envs
 
-    def _begin(self, copy_key_bits, copy, episode, table):
-        select_key, env_key = episode_keys(copy_key_bits, episode)
+    def _choose(self, select_key, copy, episode, table):
         vector, index = self.schedule.choose(select_key, self._global_episode(copy, episode), table)
-        return self.context_space.from_array(vector), index, env_key
+        return self.context_space.from_array(vector), index
 
     def _reset_copy(self, seed_bits, copy, table):
         copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
-        copy_bits = jax.random.key_data(copy_key)
+        key, select_key, env_key = jax.random.split(copy_key, 3)
         episode = jnp.int32(0)
-        context, index, env_key = self._begin(copy_bits, copy, episode, table)
+        context, index = self._choose(select_key, copy, episode, table)
         state, timestep = self.env.reset(env_key, context)
-        carry = self.packer.pack((state, context, index, episode, copy_bits))
-        return carry, self._outputs(timestep, index, index, context, copy_bits)
+        carry = self.packer.pack((state, context, index, episode, jax.random.key_data(key)))
+        return carry, self._outputs(timestep, index, index, context)
 
     def _step_copy(self, words, copy, table):
+        """One step of one copy; its key chain is split once per step (one threefry pass on CPU)."""
         size = self.packer.size
-        state, context, index, episode, copy_bits = self.packer.unpack(words[:size])
+        state, context, index, episode, key_bits = self.packer.unpack(words[:size])
         if self.discrete:
             action = jax.lax.bitcast_convert_type(words[size], jnp.int32)
         else:
             action = jax.lax.bitcast_convert_type(words[size:], jnp.float32).reshape(
                 self.env.action_space.shape
             )
-        _, env_key = episode_keys(copy_bits, episode)
-        step_key = jax.random.fold_in(env_key, state.time + 1)
-        next_context, next_index, _ = self._begin(copy_bits, copy, episode + 1, table)
+        key, select_key, step_key = jax.random.split(jax.random.wrap_key_data(key_bits), 3)
+        next_context, next_index = self._choose(select_key, copy, episode + 1, table)
         state, timestep = self.env.step_then_reset(step_key, state, action, context, next_context)
         done = timestep.done
         new_context = tree_where(done, next_context, context)
         new_index = jnp.where(done, next_index, index)
         new_episode = jnp.where(done, episode + 1, episode)
-        carry = self.packer.pack((state, new_context, new_index, new_episode, copy_bits))
-        return carry, self._outputs(timestep, index, new_index, new_context, copy_bits)
+        carry = self.packer.pack(
+            (state, new_context, new_index, new_episode, jax.random.key_data(key))
+        )
+        return carry, self._outputs(timestep, index, new_index, new_context)
 
-    def _outputs(self, timestep, index, new_index, context, copy_bits):
+    def _outputs(self, timestep, index, new_index, context):
         """One float32 row per copy: obs, reward, flags, final_obs, ids, context values."""
         return jnp.concatenate(
             [
@@ -192,6 +193,13 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self.packer = self.programs.packer
         self.table = jnp.asarray(self.schedule.table)
         self.action_words = 1 if self._discrete else int(np.prod(self.single_action_space.shape))
+        self._everyone = np.ones(self.num_envs, bool)
+        self._everyone.setflags(write=False)  # shared by every info dict, so read-only
+        self._choices = {
+            name: np.asarray(f.choices, object)
+            for name, f in self.context_space.features.items()
+            if f.kind == "categorical"
+        }
         self._copies = np.arange(self.num_envs, dtype=np.uint32)
         self._carry: np.ndarray | None = None
         self._buffer = np.zeros((self.num_envs, self.packer.size + self.action_words), np.uint32)
@@ -211,28 +219,25 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         return {"obs": flat[:, : self.base_size], "context": flat[:, self.base_size :]}
 
     def _context_info(self, rows: np.ndarray) -> dict[str, Any]:
-        names = self.context_space.names
         start = 2 * self.obs_size + 5
-        values = rows[:, start : start + len(names)]
         info: dict[str, Any] = {}
         for column, (name, feature) in enumerate(self.context_space.features.items()):
-            value = values[:, column]
+            value = rows[:, start + column]
             if feature.kind == "categorical":
-                value = np.asarray(feature.choices, object)[value.astype(np.int64)]
+                value = self._choices[name][value.astype(np.int64)]
             elif feature.kind == "int":
                 value = value.astype(np.int64)
             info[name] = value
-            info[f"_{name}"] = np.ones(self.num_envs, bool)
+            info[f"_{name}"] = self._everyone
         return info
 
     def _info(self, rows: np.ndarray) -> dict[str, Any]:
         ids_at = 2 * self.obs_size + 3
-        everyone = np.ones(self.num_envs, bool)
         return {
             "context_id": self._user_ids(rows[:, ids_at + 1]),
-            "_context_id": everyone,
+            "_context_id": self._everyone,
             "context": self._context_info(rows),
-            "_context": everyone,
+            "_context": self._everyone,
         }
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
