@@ -170,6 +170,7 @@ class DmcEnv(HostEnv):
         self.control_timestep = float(stock.control_timestep())
         self._capture_stock()
         self._applied: dict[str, float] = {}
+        self._observation_slices: list[slice] | None = None
         self.n_sub_steps = int(round(self.control_timestep / self._physics.model.opt.timestep))
         observation = self._observation()
         self._observation_space = gymnasium.spaces.Box(
@@ -177,6 +178,7 @@ class DmcEnv(HostEnv):
         )
         low, high = self._physics.model.actuator_ctrlrange.T.astype(np.float32)
         self._action_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        self._action_shape = self._action_space.shape
         missing = set(self.context_space.names) - set(self._appliers())
         if missing:  # pragma: no cover - a programming error in a domain module
             raise TypeError(f"{self.name}: no way to apply features {sorted(missing)}")
@@ -358,17 +360,25 @@ class DmcEnv(HostEnv):
     # ---- observation and action --------------------------------------------------------------------
     def _observation(self) -> np.ndarray:
         parts = self._task.get_observation(self._physics).values()
-        return np.concatenate([np.asarray(p, dtype=np.float32).ravel() for p in parts])
+        if self._observation_slices is None:  # the first call fixes the layout (key order, sizes)
+            sizes = [np.size(part) for part in parts]
+            ends = np.cumsum(sizes)
+            self._observation_slices = [slice(e - n, e) for n, e in zip(sizes, ends, strict=True)]
+            self._observation_size = int(ends[-1])
+        observation = np.empty(self._observation_size, np.float32)
+        for where, part in zip(self._observation_slices, parts, strict=True):
+            observation[where] = np.ravel(part)
+        return observation
 
     def _check_action(self, action) -> np.ndarray:
         try:
             array = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError) as error:
             raise ValueError(f"{self.name}: action {action!r} is not a numeric array") from error
-        if array.shape != self._action_space.shape:
+        if array.shape != self._action_shape:
             raise ValueError(
-                f"{self.name}: action must have shape {self._action_space.shape}, got {array.shape}"
+                f"{self.name}: action must have shape {self._action_shape}, got {array.shape}"
             )
-        if not np.all(np.isfinite(array)):
+        if not np.isfinite(array).all():
             raise ValueError(f"{self.name}: action {array} is not finite (NaN or inf)")
         return array

@@ -1,0 +1,159 @@
+"""dm_control family: stepping speed against dm_control itself, context-switch cost, vector throughput.
+
+    .venv/bin/python benchmarks/bench_dmc.py [--steps 2000] [--switches 300] [--vector-steps 2000]
+
+Prints three tables:
+1. steps/s at the default context, random actions: ``dm_control.suite.load(...).step`` against the
+   host environment stepped directly and through the gymnasium adapter (ratio to dm_control);
+2. the cost of a context switch at reset: applying a context (check + model writes) and a whole reset
+   alternating between two contexts, against a reset that keeps the context; plus a geometry switch
+   (Finger, recompiles) and a rebuild of the model from XML (``suite.load``: what CARL does per switch);
+3. steps/s of gymnasium's AsyncVectorEnv with 2 spawned worker processes against one env in-process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import time
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import gymnasium  # noqa: E402
+import numpy as np  # noqa: E402
+from dm_control import suite  # noqa: E402
+from gymnasium.vector import AutoresetMode  # noqa: E402
+
+from contextrl.envs import dmc  # noqa: E402
+from contextrl.gymnasium import ContextualGymEnv  # noqa: E402
+
+SWITCH_CONTEXTS = {  # two non-geometry contexts per domain, alternated at every reset
+    "walker": ({"viscosity": 0.0}, {"viscosity": 1.5, "geom_density": 1.5, "gravity": 5.0}),
+    "quadruped": ({}, {"friction_tangential": 0.5, "geom_density": 1.5}),
+    "fish": ({}, {"density": 2000.0, "geom_density": 1.5}),
+    "finger": ({}, {"gravity": 9.81, "geom_density": 1.5}),
+    "point_mass": ({}, {"mass": 1.0, "target_x": 0.1, "area_size": 0.8}),
+}
+
+
+def rate(function, count: int) -> float:
+    """Calls per second of ``function(i)`` for i in range(count)."""
+    start = time.perf_counter()
+    for i in range(count):
+        function(i)
+    return count / (time.perf_counter() - start)
+
+
+def stepping(cls, steps: int, rounds: int = 3) -> tuple[float, float, float]:
+    """Best steps/s over interleaved rounds (the machine is shared: interleaving keeps it fair)."""
+    space = cls().action_space
+    actions = np.random.default_rng(0).uniform(space.low, space.high, (steps, *space.shape))
+    # The same start state on both sides, so both simulate the same trajectory (the same contacts).
+    seed = dmc.task_seed(np.random.default_rng(0))
+    stock = suite.load(cls.domain, cls.default_task, task_kwargs={"random": seed})
+    stock.reset()
+    env = cls()
+    env.reset_physics(env.default_context(), np.random.default_rng(0))
+    gym_env = ContextualGymEnv(cls.__name__, max_steps=10 * steps * rounds)
+    gym_env.reset(seed=0)
+    gym_actions = actions.astype(np.float32)
+    best = np.zeros(3)
+    for round_index in range(rounds):
+        if round_index:  # restart from the same states
+            stock.task.random.seed(seed)
+            stock.reset()
+            env.reset_physics(env.default_context(), np.random.default_rng(0))
+            gym_env.reset(seed=0)
+        rates = (
+            rate(lambda i: stock.step(actions[i]), steps),
+            rate(lambda i: env.step_physics(actions[i]), steps),
+            rate(lambda i: gym_env.step(gym_actions[i]), steps),
+        )
+        best = np.maximum(best, rates)
+    return tuple(best)
+
+
+def switching(cls, count: int) -> tuple[float, float, float]:
+    """Mean milliseconds: apply a context, reset while switching, reset without switching."""
+    env = cls()
+    first, second = (env.context(**values) for values in SWITCH_CONTEXTS[cls.domain])
+    contexts = (first, second)
+    rng = np.random.default_rng(0)
+
+    def apply(i):  # what a switch adds to a reset: validation and the model writes
+        values = env.context_values(contexts[i % 2])
+        env._apply_structure(values)
+        env._apply_parameters(values)
+
+    apply_ms = 1e3 / rate(apply, count)
+    switch_ms = 1e3 / rate(lambda i: env.reset_physics(contexts[i % 2], rng), count)
+    same_ms = 1e3 / rate(lambda i: env.reset_physics(first, rng), count)
+    return apply_ms, switch_ms, same_ms
+
+
+def vector_rate(steps: int) -> tuple[float, float]:
+    """Steps/s (summed over copies) of 2 spawned workers, and of one env in this process."""
+    factories = [
+        functools.partial(ContextualGymEnv, "DmcWalker", copy_index=i, num_copies=2)
+        for i in range(2)
+    ]
+    envs = gymnasium.vector.AsyncVectorEnv(
+        factories, context="spawn", autoreset_mode=AutoresetMode.SAME_STEP
+    )
+    envs.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2, 6)).astype(np.float32)  # walker
+    vector = 2 * rate(lambda i: envs.step(actions[i]), steps)
+    envs.close()
+    single_env = ContextualGymEnv("DmcWalker")
+    single_env.reset(seed=0)
+    single = rate(lambda i: single_env.step(actions[i, 0]), steps)
+    return vector, single
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--switches", type=int, default=300)
+    parser.add_argument("--vector-steps", type=int, default=2000)
+    args = parser.parse_args()
+    print(f"CPU cores: {os.cpu_count()}\n")
+
+    print(
+        "1. steps/s at the default context (one env, random actions, best of 3 interleaved rounds)"
+    )
+    print(f"{'env':<14}{'dm_control':>12}{'direct':>10}{'ratio':>7}{'gymnasium':>11}{'ratio':>7}")
+    for cls in dmc.ENVIRONMENTS:
+        stock, direct, gym = stepping(cls, args.steps)
+        print(
+            f"{cls.__name__:<14}{stock:>12.0f}{direct:>10.0f}{direct / stock:>7.2f}"
+            f"{gym:>11.0f}{gym / stock:>7.2f}"
+        )
+
+    print("\n2. context switch at reset, ms (non-geometry features, alternating two contexts)")
+    print(f"{'env':<14}{'apply':>8}{'reset+switch':>14}{'reset same':>12}{'switch cost':>13}")
+    for cls in dmc.ENVIRONMENTS:
+        apply_ms, switch_ms, same_ms = switching(cls, args.switches)
+        print(
+            f"{cls.__name__:<14}{apply_ms:>8.3f}{switch_ms:>14.3f}{same_ms:>12.3f}"
+            f"{switch_ms - same_ms:>13.3f}"
+        )
+    finger = dmc.DmcFinger()
+    spinners = (finger.default_context(), finger.context(spinner_length=0.3))
+    count = max(10, args.switches // 10)
+    geometry_ms = 1e3 / rate(
+        lambda i: finger.reset_physics(spinners[i % 2], np.random.default_rng(i)), count
+    )
+    rebuild_ms = 1e3 / rate(lambda i: suite.load("walker", "walk"), count)
+    print(f"DmcFinger reset switching spinner_length (recompiles): {geometry_ms:.2f} ms")
+    print(f"walker rebuilt from XML with suite.load (CARL's way, per switch): {rebuild_ms:.2f} ms")
+
+    print("\n3. vector throughput, DmcWalker through gymnasium (steps/s over all copies)")
+    vector, single = vector_rate(args.vector_steps)
+    print(f"AsyncVectorEnv, 2 spawned workers: {vector:.0f}")
+    print(f"one env in this process:           {single:.0f}")
+    print(f"ratio:                             {vector / single:.2f}")
+
+
+if __name__ == "__main__":
+    main()
