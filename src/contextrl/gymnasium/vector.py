@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import gymnasium
@@ -27,10 +28,10 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from contextrl.context.features import ContextError
-from contextrl.core.env import Env, tree_where
+from contextrl.core.env import Env
 from contextrl.core.registry import spec
 from contextrl.core.spaces import Discrete
-from contextrl.gymnasium.backends import shared_program
+from contextrl.gymnasium.backends import advance, shared_program
 from contextrl.gymnasium.env import ContextualGymEnv, build_env, check_max_steps, render_fps
 from contextrl.gymnasium.packing import Packer
 from contextrl.gymnasium.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
@@ -51,7 +52,7 @@ class VectorPrograms:
             (state, env.default_context(), jnp.int32(0), jnp.int32(0), jax.random.key_data(key))
         )
         self.reset = jax.jit(jax.vmap(self._reset_copy, in_axes=(None, 0, None)))
-        self.step = jax.jit(jax.vmap(self._step_copy, in_axes=(0, 0, None)))
+        self.step = jax.jit(self._step)
 
     def _global_episode(self, copy, episode):
         return copy.astype(jnp.int32) + episode * self.num_envs
@@ -60,46 +61,71 @@ class VectorPrograms:
         vector, index = self.schedule.choose(select_key, self._global_episode(copy, episode), table)
         return self.context_space.from_array(vector), index
 
-    def _reset_copy(self, seed_bits, copy, table):
-        copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
-        key, select_key, env_key = jax.random.split(copy_key, 3)
-        episode = jnp.int32(0)
+    def _restart_copy(self, key_bits, copy, episode, table):
+        """A copy's next episode: split its key chain, pick the context, reset."""
+        key, select_key, env_key = jax.random.split(jax.random.wrap_key_data(key_bits), 3)
         context, index = self._choose(select_key, copy, episode, table)
         state, timestep = self.env.reset(env_key, context)
-        carry = self.packer.pack((state, context, index, episode, jax.random.key_data(key)))
-        return carry, self._outputs(timestep, index, index, context)
+        return state, timestep.obs, context, index, jax.random.key_data(key)
 
-    def _step_copy(self, words, copy, table):
-        """One step of one copy; its key chain is split once per step (one threefry pass on CPU)."""
-        size = self.packer.size
-        state, context, index, episode, key_bits = self.packer.unpack(words[:size])
-        if self.discrete:
-            action = jax.lax.bitcast_convert_type(words[size], jnp.int32)
-        else:
-            action = jax.lax.bitcast_convert_type(words[size:], jnp.float32).reshape(
-                self.env.action_space.shape
-            )
-        key, select_key, step_key = jax.random.split(jax.random.wrap_key_data(key_bits), 3)
-        next_context, next_index = self._choose(select_key, copy, episode + 1, table)
-        state, timestep = self.env.step_then_reset(step_key, state, action, context, next_context)
-        done = timestep.done
-        new_context = tree_where(done, next_context, context)
-        new_index = jnp.where(done, next_index, index)
-        new_episode = jnp.where(done, episode + 1, episode)
-        carry = self.packer.pack(
-            (state, new_context, new_index, new_episode, jax.random.key_data(key))
+    def _reset_copy(self, seed_bits, copy, table):
+        copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
+        episode = jnp.int32(0)
+        state, obs, context, index, key_bits = self._restart_copy(
+            jax.random.key_data(copy_key), copy, episode, table
         )
-        return carry, self._outputs(timestep, index, new_index, new_context)
+        carry = self.packer.pack((state, context, index, episode, key_bits))
+        row = self._row(obs, jnp.float32(0), False, False, obs, index, index, context)
+        return carry, row
 
-    def _outputs(self, timestep, index, new_index, context):
+    def _step(self, words, copies, table):
+        """All copies advance; only if some episode ended are the restarts computed (one cond).
+
+        Same-step auto-reset as ``Env.step_then_reset``, but the reset (random start states, context
+        choice) runs only on steps where an episode ends, which is most of the cost for few copies.
+        """
+        size = self.packer.size
+        state, context, index, episode, key_bits = jax.vmap(self.packer.unpack)(words[:, :size])
+        if self.discrete:
+            action = jax.lax.bitcast_convert_type(words[:, size], jnp.int32)
+        else:
+            action = jax.lax.bitcast_convert_type(words[:, size:], jnp.float32).reshape(
+                (words.shape[0], *self.env.action_space.shape)
+            )
+        keys = jax.vmap(jax.random.wrap_key_data)(key_bits)
+        state, final_obs, reward, terminated, truncated = jax.vmap(partial(advance, self.env))(
+            keys, state, action, context
+        )
+        done = terminated | truncated
+        restart = jax.lax.cond(
+            done.any(),
+            lambda: jax.vmap(self._restart_copy, in_axes=(0, 0, 0, None))(
+                key_bits, copies, episode + 1, table
+            ),
+            lambda: (state, final_obs, context, index, key_bits),
+        )
+        kept = (state, final_obs, context, index, key_bits)
+        state, obs, new_context, new_index, key_bits = jax.tree_util.tree_map(
+            lambda fresh, old: jnp.where(done.reshape(-1, *([1] * (old.ndim - 1))), fresh, old),
+            restart,
+            kept,
+        )
+        new_episode = jnp.where(done, episode + 1, episode)
+        carry = jax.vmap(self.packer.pack)((state, new_context, new_index, new_episode, key_bits))
+        rows = jax.vmap(self._row)(
+            obs, reward, terminated, truncated, final_obs, index, new_index, new_context
+        )
+        return carry, rows
+
+    def _row(self, obs, reward, terminated, truncated, final_obs, index, new_index, context):
         """One float32 row per copy: obs, reward, flags, final_obs, ids, context values."""
         return jnp.concatenate(
             [
-                timestep.obs,
-                timestep.reward[None],
-                timestep.terminated[None].astype(jnp.float32),
-                timestep.truncated[None].astype(jnp.float32),
-                timestep.final_obs,
+                obs,
+                jnp.asarray(reward, jnp.float32)[None],
+                jnp.asarray(terminated, jnp.float32)[None],
+                jnp.asarray(truncated, jnp.float32)[None],
+                final_obs,
                 jnp.stack([index, new_index]).astype(jnp.float32),
                 self.context_space.to_array(context),
             ]
