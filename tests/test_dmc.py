@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering, before MuJoCo loads
@@ -333,6 +334,15 @@ def test_bad_input_is_refused_clearly_and_leaves_the_environment_usable(built):
         env.reset_physics(
             env.context_space.stack([env.default_context()] * 2), np.random.default_rng(0)
         )
+    with pytest.raises(ContextError, match="expected a DmcFingerContext"):
+        env.reset_physics(dmc.DmcWalker.context_type.space.default(), np.random.default_rng(0))
+    unchecked = env.default_context()  # built around validation, as a buggy caller might
+    with pytest.raises(ContextError, match="gravity: value nan is not finite"):
+        env.reset_physics(dataclasses.replace(unchecked, gravity=np.float32("nan")), None)
+    with pytest.raises(ContextError, match=r"viscosity: value 11 is outside its bounds \[0, 10\]"):
+        env.reset_physics(dataclasses.replace(unchecked, viscosity=np.float32(11)), None)
+    # The upper bound itself is valid, in the float32 a context holds.
+    env.reset_physics(env.context(limb_length_0=0.2, spinner_radius=0.05), np.random.default_rng(0))
     with pytest.raises(ValueError, match=r"shape \(2,\)"):
         env.step_physics(np.zeros(3))
     with pytest.raises(ValueError, match="not finite"):
