@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 .PHONY: install system-deps test run bench lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
-SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri chromium chromium-driver
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || python3 -m venv $(VENV)
