@@ -376,3 +376,14 @@ def test_rendering_is_headless_and_shows_the_geometry():
     longer = env.render_frame()
     assert np.mean(np.any(longer != frame, axis=-1)) > 0.005
     env.close()
+
+
+def test_registered_under_their_names_and_carl_aliases():
+    import contextrl as crl
+    from contextrl.envs import DMC_ENVIRONMENTS
+
+    assert crl.registered("dmc") == sorted(cls.__name__ for cls in dmc.ENVIRONMENTS)
+    assert set(DMC_ENVIRONMENTS) == set(ENVS)
+    env = crl.make("CARLDmcPointMassEnv", task="hard")
+    assert isinstance(env, dmc.DmcPointMass) and env.task_name == "hard"
+    assert crl.spec("CARLDmcPointMassEnv").host

@@ -1,5 +1,6 @@
 """Environment families; importing this registers every environment whose dependencies are installed."""
 
+import functools
 import importlib.util
 
 from contextrl.core.registry import register
@@ -14,8 +15,17 @@ for _env in (
 ):
     register(_env.__name__, _env, family="classic_control", aliases=(f"CARL{_env.__name__}",))
 
-if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` extra
+DMC_ENVIRONMENTS = ("DmcWalker", "DmcQuadruped", "DmcFish", "DmcFinger", "DmcPointMass")
+
+
+def _make_dmc(name: str, **kwargs):
+    """Build a dm_control environment; MuJoCo is imported when the first one is made, not on import."""
     from contextrl.envs import dmc
 
-    for _env in dmc.ENVIRONMENTS:
-        register(_env.__name__, _env, family="dmc", aliases=(f"CARL{_env.__name__}Env",), host=True)
+    return getattr(dmc, name)(**kwargs)
+
+
+if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` extra
+    for _name in DMC_ENVIRONMENTS:
+        _factory = functools.partial(_make_dmc, _name)
+        register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
