@@ -159,6 +159,11 @@ class JaxBackend:
         self._discrete = self.programs.discrete
         action_words = 1 if self._discrete else int(np.prod(self.action_space.shape))
         self._buffer = np.zeros(self.packer.size + action_words, np.uint32)
+        # Views and bound methods made once: per-step host work is a few NumPy calls.
+        self._size = self.packer.size
+        self._carry_slot = self._buffer[: self._size]
+        self._action_slot = self._buffer[self._size :]
+        self._step = self.programs.step
 
     # ---- host side ------------------------------------------------------------------------------------
     def _unpack_start(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -179,7 +184,7 @@ class JaxBackend:
         words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
         return self._unpack_start(np.asarray(self.programs.start_with(words)))
 
-    def _write_action(self, action: Any, slot: np.ndarray) -> None:
+    def _write_action(self, action: Any) -> None:
         """Validate ``action`` and write its bits into the input vector's action slot."""
         if self._discrete:
             try:
@@ -190,7 +195,7 @@ class JaxBackend:
                 raise ValueError(
                     f"action must be an integer in [0, {self.action_space.n}), got {action!r}"
                 )
-            slot[0] = index
+            self._action_slot[0] = index
             return
         values = np.asarray(action, np.float32)
         if values.shape != self.action_space.shape or not np.all(np.isfinite(values)):
@@ -198,13 +203,13 @@ class JaxBackend:
                 f"action must be a finite float array of shape {self.action_space.shape}, "
                 f"got {action!r}"
             )
-        slot[:] = values.ravel().view(np.uint32)
+        self._action_slot[:] = values.ravel().view(np.uint32)
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        size, buffer = self.packer.size, self._buffer
-        self._write_action(action, buffer[size:])
-        buffer[:size] = self.carry
-        out = np.asarray(self.programs.step(buffer))
+        self._write_action(action)
+        self._carry_slot[:] = self.carry
+        out = np.asarray(self._step(self._buffer))
+        size = self._size
         self.carry = out[:size]
         values = out.view(np.float32)
         end = size + self.obs_size
