@@ -343,6 +343,8 @@ def test_bad_input_is_refused_clearly_and_leaves_the_environment_usable(built):
         env.reset_physics(dataclasses.replace(unchecked, viscosity=np.float32(11)), None)
     # The upper bound itself is valid, in the float32 a context holds.
     env.reset_physics(env.context(limb_length_0=0.2, spinner_radius=0.05), np.random.default_rng(0))
+    with pytest.raises(TypeError, match="numpy.random.Generator"):
+        env.reset_physics(env.default_context(), 0)
     with pytest.raises(ValueError, match=r"shape \(2,\)"):
         env.step_physics(np.zeros(3))
     with pytest.raises(ValueError, match="not finite"):
@@ -366,15 +368,25 @@ def test_bad_input_is_refused_clearly_and_leaves_the_environment_usable(built):
 # ---- rendering -----------------------------------------------------------------------------------
 
 
-def test_rendering_is_headless_and_shows_the_geometry():
-    env = dmc.DmcFinger(render_size=(64, 80))
+@pytest.mark.parametrize(
+    "name, changed",
+    [
+        ("DmcWalker", None),
+        ("DmcQuadruped", None),
+        ("DmcFish", None),
+        ("DmcFinger", {"spinner_length": 0.36}),
+        ("DmcPointMass", {"area_size": 1.2, "target_x": 0.4}),
+    ],
+)
+def test_rendering_is_headless_and_shows_the_geometry(name, changed):
+    env = ENVS[name](render_size=(48, 64))
     env.reset_physics(env.default_context(), np.random.default_rng(0))
     frame = env.render_frame()
-    assert frame.shape == (64, 80, 3) and frame.dtype == np.uint8
+    assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8
     assert frame.std() > 5  # an image, not a blank
-    env.reset_physics(env.context(spinner_length=0.36), np.random.default_rng(0))
-    longer = env.render_frame()
-    assert np.mean(np.any(longer != frame, axis=-1)) > 0.005
+    if changed is not None:  # the geometry a context changes is visible
+        env.reset_physics(env.context(**changed), np.random.default_rng(0))
+        assert np.mean(np.any(env.render_frame() != frame, axis=-1)) > 0.005
     env.close()
 
 

@@ -236,6 +236,8 @@ class DmcEnv(HostEnv):
 
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:
         values = self.context_values(context)  # every check before anything changes
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"{self.name}: rng must be a numpy.random.Generator, got {rng!r}")
         self._apply_structure(values)
         self._task.random.seed(task_seed(rng))
         with self._physics.reset_context():
