@@ -132,12 +132,11 @@ def test_default_context_is_stock_dm_control_step_by_step(built, name):
         assert not terminated
 
 
-# escape and fetch build larger models (a height field, a ball); walk covers the quadruped's stepping.
 OTHER_TASKS = [
     (cls, task)
     for cls in dmc.ENVIRONMENTS
     for task in suite.TASKS_BY_DOMAIN[cls.domain]
-    if task != cls.default_task and task not in ("escape", "fetch")
+    if task != cls.default_task
 ]
 
 
