@@ -1,10 +1,11 @@
 """The paper's optimality-gap experiment at full size, timed: CartPole, pole length U(0.25, 0.75),
 64 training contexts, one general agent and 64 specialists per seed, 10 seeds, 100,000 steps each
-(650 agents), PPO with 64×64 networks, through the same `contextrl run` machinery (chunks of vmapped
-agents, Parquet results, report).
+(650 agents), PPO with 64×64 networks (or the paper's C51 with --agent c51), through the same
+`contextrl run` machinery (chunks of vmapped agents, Parquet results, report).
 
     python benchmarks/bench_optimality_gap.py                 # full size
     python benchmarks/bench_optimality_gap.py --max-chunks 1  # time one chunk, extrapolate the rest
+    python benchmarks/bench_optimality_gap.py --agent c51 --seeds 1 --timesteps 10000 --max-chunks 1
 
 Prints a table of agents, environment steps, wall time, agents/s and steps/s, and the measured gap.
 """
@@ -25,8 +26,16 @@ def main() -> None:
     parser.add_argument("--contexts", type=int, default=64)
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--timesteps", type=int, default=100_000)
-    parser.add_argument("--num-envs", type=int, default=4)
-    parser.add_argument("--batch-size", type=int, default=128, help="agents per vmapped chunk")
+    parser.add_argument("--num-envs", type=int, default=4, help="PPO environment copies per agent")
+    parser.add_argument(
+        "--agent",
+        default="ppo",
+        choices=["ppo", "c51"],
+        help="c51: the paper's C51 (256×256, 51 atoms)",
+    )
+    parser.add_argument(
+        "--batch-size", type=int, default=64, help="agents per vmapped chunk (128 hangs XLA on CPU)"
+    )
     parser.add_argument("--max-chunks", type=int, default=None, help="time only this many chunks")
     parser.add_argument("--out", default=None, help="run directory (default: a temporary one)")
     args = parser.parse_args()
@@ -40,12 +49,16 @@ def main() -> None:
             "num_contexts": args.contexts,
             "seeds": args.seeds,
             "variants": ["hidden"],
-            "agent": "ppo",
-            "agent_options": {
-                "total_timesteps": args.timesteps,
-                "num_envs": args.num_envs,
-                "hidden_sizes": [64, 64],
-            },
+            "agent": args.agent,
+            "agent_options": (
+                {
+                    "total_timesteps": args.timesteps,
+                    "num_envs": args.num_envs,
+                    "hidden_sizes": [64, 64],
+                }
+                if args.agent == "ppo"
+                else {"total_timesteps": args.timesteps}
+            ),
             "eval_episodes": 10,
             "batch_size": args.batch_size,
             "bootstrap_reps": 2000,
@@ -70,9 +83,13 @@ def main() -> None:
         ("seconds per agent", f"{sum(timings.values()) / max(done, 1):.3f}"),
         ("training steps/s", f"{done * steps_per_agent / max(sum(timings.values()), 1e-9):.3g}"),
     ]
-    if done < len(plan.trials):
-        estimate = sum(timings.values()) / done * len(plan.trials)
-        rows.append(("extrapolated total (all agents)", f"{estimate / 60:.1f} min"))
+    if done < len(plan.trials) or steps_per_agent != 100_000:
+        per_step = sum(timings.values()) / max(done * steps_per_agent, 1)
+        rows.append(("extrapolated: 100,000 steps, 1 agent", f"{per_step * 100_000:.1f} s"))
+        full = per_step * 100_000 * (args.contexts + 1) * args.seeds
+        rows.append(
+            (f"extrapolated: {(args.contexts + 1) * args.seeds} agents", f"{full / 60:.1f} min")
+        )
     for chunk, seconds in sorted(timings.items(), key=lambda kv: int(kv[0])):
         rows.append((f"chunk {chunk} ({len(plan.chunks[int(chunk)])} agents)", f"{seconds:.1f} s"))
     width = max(len(name) for name, _ in rows)

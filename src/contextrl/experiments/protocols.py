@@ -83,9 +83,9 @@ def trial_key(seed: int, trial_id: str):
     return jax.random.fold_in(jax.random.key(seed), zlib.crc32(trial_id.encode()) & 0x7FFFFFFF)
 
 
-def _draw(spec: CommonSpec, features: Mapping, n: int, stream: int):
+def _draw(spec: CommonSpec, field: str, features: Mapping, n: int, stream: int):
     space = spec.space()
-    resolved = spec.resolve_features("train", features)
+    resolved = spec.resolve_features(field, features)
     return draw(space, resolved, n, jax.random.fold_in(jax.random.key(spec.seed), stream))
 
 
@@ -132,7 +132,7 @@ def sensitivity(spec: SensitivitySpec) -> tuple[dict, list]:
 
 
 def optimality_gap(spec: OptimalityGapSpec) -> tuple[dict, list]:
-    train = _draw(spec, spec.train, spec.num_contexts, TRAIN_KEY)
+    train = _draw(spec, "train", spec.train, spec.num_contexts, TRAIN_KEY)
     ids = list(range(spec.num_contexts))
     sets = {"train": ContextSet("train", train, {"context": ids})}
     trials = _grid(spec, "general", "train", "train")
@@ -150,8 +150,14 @@ def optimality_gap(spec: OptimalityGapSpec) -> tuple[dict, list]:
 
 
 def visibility(spec: VisibilitySpec) -> tuple[dict, list]:
-    train = _draw(spec, spec.train, spec.num_train_contexts, TRAIN_KEY)
-    test = _draw(spec, spec.test or spec.train, spec.num_test_contexts, TEST_KEY)
+    train = _draw(spec, "train", spec.train, spec.num_train_contexts, TRAIN_KEY)
+    test = _draw(
+        spec,
+        "test" if spec.test else "train",
+        spec.test or spec.train,
+        spec.num_test_contexts,
+        TEST_KEY,
+    )
     sets = {"train": ContextSet("train", train), "test": ContextSet("test", test)}
     return sets, _grid(spec, "visibility", "train", "test")
 
