@@ -16,7 +16,7 @@ import functools  # noqa: E402
 import gymnasium  # noqa: E402
 from gymnasium.vector import AutoresetMode  # noqa: E402
 
-import contextrl  # noqa: E402, F401  (registers the gymnasium ids)
+import contextrl  # noqa: E402  (also registers the gymnasium ids)
 from contextrl.gymnasium import ContextualGymEnv  # noqa: E402
 
 
@@ -87,3 +87,21 @@ def test_vector_env_with_two_worker_processes_gives_each_copy_its_context():
         obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
     assert obs.shape == (2, 10) and np.all(np.isfinite(obs))
     envs.close()
+
+
+@pytest.mark.parametrize(
+    "name", ["DmcWalker", "DmcQuadruped", "DmcFish", "DmcFinger", "DmcPointMass"]
+)
+@pytest.mark.filterwarnings("ignore::UserWarning")  # unbounded observations, asymmetric actions
+def test_gymnasium_check_env_passes_with_resampled_visible_contexts(name):
+    from gymnasium.utils.env_checker import check_env
+
+    feature = "mass" if name == "DmcPointMass" else "gravity"
+    env = gymnasium.make(
+        f"contextrl/{name}-v0",
+        contexts={feature: contextrl.Uniform(1.0, 5.0)},
+        obs_context_features="all",
+        render_mode="rgb_array",
+    )
+    check_env(env.unwrapped, skip_render_check=False)
+    env.close()
