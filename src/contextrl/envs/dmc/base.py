@@ -175,7 +175,6 @@ class DmcEnv(HostEnv):
             (name, float(np.float32(f.lower)), float(np.float32(f.upper)))
             for name, f in self.context_space.features.items()
         ]
-        self._observation_slices: list[slice] | None = None
         self.n_sub_steps = int(round(self.control_timestep / self._physics.model.opt.timestep))
         observation = self._observation()
         self._observation_space = gymnasium.spaces.Box(
@@ -383,15 +382,7 @@ class DmcEnv(HostEnv):
     # ---- observation and action --------------------------------------------------------------------
     def _observation(self) -> np.ndarray:
         parts = self._task.get_observation(self._physics).values()
-        if self._observation_slices is None:  # the first call fixes the layout (key order, sizes)
-            sizes = [np.size(part) for part in parts]
-            ends = np.cumsum(sizes)
-            self._observation_slices = [slice(e - n, e) for n, e in zip(sizes, ends, strict=True)]
-            self._observation_size = int(ends[-1])
-        observation = np.empty(self._observation_size, np.float32)
-        for where, part in zip(self._observation_slices, parts, strict=True):
-            observation[where] = np.ravel(part)
-        return observation
+        return np.concatenate([np.ravel(part) for part in parts], dtype=np.float32)
 
     def _check_action(self, action) -> np.ndarray:
         try:
