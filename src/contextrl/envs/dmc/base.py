@@ -106,16 +106,16 @@ def actuator_strength_feature() -> Any:
     return feature(1.0, 0.0, 10.0, doc="scale of every actuator's force (gain, bias, force range)")
 
 
-def geom_density_feature() -> Any:
-    return feature(1.0, 0.1, 10.0, doc="scale of every body's mass and inertia")
+def geom_density_feature(lower: float = 0.1) -> Any:
+    return feature(1.0, lower, 10.0, doc="scale of every body's mass and inertia")
 
 
 def density_feature(default: float = 0.0) -> Any:
     return feature(default, 0.0, 20000.0, unit="kg/m³", doc="density of the surrounding medium")
 
 
-def viscosity_feature(default: float = 0.0) -> Any:
-    return feature(default, 0.0, 10.0, unit="Pa·s", doc="viscosity of the surrounding medium")
+def viscosity_feature(default: float = 0.0, upper: float = 10.0) -> Any:
+    return feature(default, 0.0, upper, unit="Pa·s", doc="viscosity of the surrounding medium")
 
 
 def wind_feature(axis: str, limit: float = 20.0) -> Any:

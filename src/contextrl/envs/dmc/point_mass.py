@@ -37,10 +37,10 @@ class DmcPointMassContext(ContextBase):
     wind_y: float = base.wind_feature("y")
     mass: float = feature(0.3, 0.01, 10.0, unit="kg", doc="mass of the ball")
     starting_x: float = feature(
-        0.0, -0.99, 0.99, unit="m", doc="centre of the start region, x", affects=("start_state",)
+        0.0, -0.96, 0.96, unit="m", doc="centre of the start region, x", affects=("start_state",)
     )
     starting_y: float = feature(
-        0.0, -0.99, 0.99, unit="m", doc="centre of the start region, y", affects=("start_state",)
+        0.0, -0.96, 0.96, unit="m", doc="centre of the start region, y", affects=("start_state",)
     )
     start_spread: float = feature(
         1.0,
@@ -50,10 +50,10 @@ class DmcPointMassContext(ContextBase):
         affects=("start_state",),
     )
     target_x: float = feature(
-        0.0, -0.99, 0.99, unit="m", doc="target position, x", affects=("goal",)
+        0.0, -0.96, 0.96, unit="m", doc="target position, x", affects=("goal",)
     )
     target_y: float = feature(
-        0.0, -0.99, 0.99, unit="m", doc="target position, y", affects=("goal",)
+        0.0, -0.96, 0.96, unit="m", doc="target position, y", affects=("goal",)
     )
     area_size: float = feature(
         0.6, 0.2, 2.0, unit="m", doc="side of the square arena", affects=("dynamics", "start_state")
