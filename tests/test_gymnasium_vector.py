@@ -100,7 +100,8 @@ def test_vector_rejects_bad_input_before_running():
         envs.step(np.array([0, 2]))
 
 
-def test_host_envs_run_as_gymnasium_vector_envs_with_a_context_per_copy():
+@pytest.mark.parametrize("vectorization", ["sync", "async"])
+def test_host_envs_run_as_gymnasium_vector_envs_with_a_context_per_copy(vectorization):
     host_ids = [i for i in crl.registered() if crl.spec(i).host]
     if not host_ids:
         pytest.skip("no host environment is installed")
@@ -115,10 +116,14 @@ def test_host_envs_run_as_gymnasium_vector_envs_with_a_context_per_copy():
     envs = make_vector_env(
         env_id,
         num_envs=2,
-        vectorization="sync",
+        vectorization=vectorization,
         contexts=[{feature.name: v} for v in values],
         obs_context_features="varying",
     )
+    assert (
+        type(envs).__name__ == {"sync": "SyncVectorEnv", "async": "AsyncVectorEnv"}[vectorization]
+    )
+    assert envs.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
     obs, info = envs.reset(seed=0)
     np.testing.assert_array_equal(info["context_id"], [0, 1])
     np.testing.assert_allclose(obs[:, -1], values, rtol=1e-6)

@@ -372,12 +372,12 @@ def make_vector_env(
         functools.partial(ContextualGymEnv, env_id, copy_index=i, num_copies=num_envs, **kwargs)
         for i in range(num_envs)
     ]
-    vector_class = (
-        gymnasium.vector.AsyncVectorEnv
-        if vectorization == "async"
-        else gymnasium.vector.SyncVectorEnv
+    if vectorization == "sync":
+        return gymnasium.vector.SyncVectorEnv(factories, autoreset_mode=AutoresetMode.SAME_STEP)
+    # "spawn": JAX is multithreaded, so forking a process that has used it can deadlock.
+    return gymnasium.vector.AsyncVectorEnv(
+        factories, autoreset_mode=AutoresetMode.SAME_STEP, context="spawn"
     )
-    return vector_class(factories, autoreset_mode=AutoresetMode.SAME_STEP)
 
 
 __all__ = ["ContextualVectorEnv", "make_vector_env"]
