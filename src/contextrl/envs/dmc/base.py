@@ -140,9 +140,9 @@ def _exact(value: float, stock: float) -> float:
 class DmcEnv(HostEnv):
     """A dm_control suite task on MuJoCo with a context applied to the compiled model in place.
 
-    ``task`` picks any task of the domain (``TASKS``). Observations are the task's observation dict
-    flattened in its (ordered) key order to float32; actions are the actuators' controls. The episode
-    never terminates by itself (dm_control tasks end by time: the adapter's 1000-step limit is a
+    ``task`` picks any task of the domain (``dm_control.suite.TASKS_BY_DOMAIN``). Observations are
+    the task's observation dict flattened in its (ordered) key order to float32; actions are the
+    actuators' controls. The episode never terminates by itself (dm_control tasks end by time: the adapter's 1000-step limit is a
     truncation), except when the simulation diverges, which ends it as terminated with reward 0.
     """
 
