@@ -219,6 +219,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self.packer = self.programs.packer
         self.table = jnp.asarray(self.schedule.table)
         self.action_words = 1 if self._discrete else int(np.prod(self.single_action_space.shape))
+        self._ids_are_indices = self._id_table.dtype != object and np.array_equal(
+            self._id_table, np.arange(len(self._id_table))
+        )
         self._everyone = np.ones(self.num_envs, bool)
         self._everyone.setflags(write=False)  # shared by every info dict, so read-only
         self._choices = {
@@ -232,9 +235,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
-        indices = np.rint(indices).astype(np.int64)
-        if not len(self._id_table):  # resampling: no context comes from a set
-            return np.full(indices.shape, RESAMPLED_ID, np.int64)
+        indices = indices.astype(np.int64)  # exact: indices are small integers stored as float32
+        if self._ids_are_indices:  # ids 0..K-1 (and -1 for resampled): the index is the id
+            return indices
         ids = self._id_table[np.maximum(indices, 0)]  # fancy indexing copies
         ids[indices < 0] = RESAMPLED_ID
         return ids
@@ -287,7 +290,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
                     f"actions must be {self.num_envs} integers in [0, {self.single_action_space.n}), "
                     f"got {actions!r}"
                 )
-            if np.any(actions < 0) or np.any(actions >= self.single_action_space.n):
+            if actions.astype(np.uint64).max() >= self.single_action_space.n:  # negatives wrap
                 raise ValueError(
                     f"actions must lie in [0, {self.single_action_space.n}), got {actions!r}"
                 )
