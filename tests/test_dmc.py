@@ -414,6 +414,17 @@ def test_rendering_is_headless_and_shows_the_geometry(name, changed):
     env.close()
 
 
+def test_observation_layout_names_each_part_of_the_flat_observation(built):
+    env, _ = built["DmcWalker"]
+    assert env.observation_layout == {
+        "orientations": slice(0, 14),
+        "height": slice(14, 15),
+        "velocity": slice(15, 24),
+    }
+    obs = env.reset_physics(env.default_context(), np.random.default_rng(0))
+    assert obs[env.observation_layout["height"]][0] == np.float32(env.physics.torso_height())
+
+
 def test_registered_under_their_names_and_carl_aliases():
     import contextrl as crl
     from contextrl.envs import DMC_ENVIRONMENTS

@@ -176,6 +176,12 @@ class DmcEnv(HostEnv):
             for name, f in self.context_space.features.items()
         ]
         self.n_sub_steps = int(round(self.control_timestep / self._physics.model.opt.timestep))
+        parts = self._task.get_observation(self._physics)
+        ends = np.cumsum([np.size(part) for part in parts.values()])
+        self.observation_layout = {
+            key: slice(int(end - np.size(part)), int(end))
+            for (key, part), end in zip(parts.items(), ends, strict=True)
+        }  # where each of the task's observations lies in the flat observation
         observation = self._observation()
         self._observation_space = gymnasium.spaces.Box(
             -np.inf, np.inf, shape=observation.shape, dtype=np.float32
