@@ -14,19 +14,16 @@ Prints three tables:
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import gymnasium  # noqa: E402
 import numpy as np  # noqa: E402
 from dm_control import suite  # noqa: E402
-from gymnasium.vector import AutoresetMode  # noqa: E402
 
 from contextrl.envs import dmc  # noqa: E402
-from contextrl.gymnasium import ContextualGymEnv  # noqa: E402
+from contextrl.gymnasium import ContextualGymEnv, make_vector_env  # noqa: E402
 
 SWITCH_CONTEXTS = {  # two non-geometry contexts per domain, alternated at every reset
     "walker": ({"viscosity": 0.0}, {"viscosity": 1.5, "geom_density": 1.5, "gravity": 5.0}),
@@ -94,13 +91,7 @@ def switching(cls, count: int) -> tuple[float, float, float]:
 
 def vector_rate(steps: int) -> tuple[float, float]:
     """Steps/s (summed over copies) of 2 spawned workers, and of one env in this process."""
-    factories = [
-        functools.partial(ContextualGymEnv, "DmcWalker", copy_index=i, num_copies=2)
-        for i in range(2)
-    ]
-    envs = gymnasium.vector.AsyncVectorEnv(
-        factories, context="spawn", autoreset_mode=AutoresetMode.SAME_STEP
-    )
+    envs = make_vector_env("DmcWalker", num_envs=2)  # AsyncVectorEnv, spawned workers
     envs.reset(seed=0)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2, 6)).astype(np.float32)  # walker
     vector = 2 * rate(lambda i: envs.step(actions[i]), steps)

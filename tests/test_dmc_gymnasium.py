@@ -11,13 +11,9 @@ import pytest  # noqa: E402
 
 pytest.importorskip("dm_control")
 
-import functools  # noqa: E402
-
 import gymnasium  # noqa: E402
-from gymnasium.vector import AutoresetMode  # noqa: E402
 
 import contextrl  # noqa: E402  (also registers the gymnasium ids)
-from contextrl.gymnasium import ContextualGymEnv  # noqa: E402
 
 
 def episode(env, seed: int, steps: int) -> tuple[np.ndarray, list]:
@@ -66,21 +62,13 @@ def test_same_seed_same_episode_through_gymnasium():
 
 
 def test_vector_env_with_two_worker_processes_gives_each_copy_its_context():
-    # Workers are spawned: a forked child of a process that has started JAX can deadlock.
-    factories = [
-        functools.partial(
-            ContextualGymEnv,
-            "DmcFinger",
-            contexts=[{"spinner_length": 0.18}, {"spinner_length": 0.3}],
-            obs_context_features=["spinner_length"],
-            copy_index=copy,
-            num_copies=2,
-        )
-        for copy in range(2)
-    ]
-    envs = gymnasium.vector.AsyncVectorEnv(
-        factories, context="spawn", autoreset_mode=AutoresetMode.SAME_STEP
+    envs = gymnasium.make_vec(
+        "contextrl/DmcFinger-v0",
+        num_envs=2,
+        contexts=[{"spinner_length": 0.18}, {"spinner_length": 0.3}],
+        obs_context_features=["spinner_length"],
     )
+    assert isinstance(envs, gymnasium.vector.AsyncVectorEnv)  # worker processes
     obs, info = envs.reset(seed=0)
     np.testing.assert_allclose(obs[:, -1], [0.18, 0.3], rtol=1e-6)
     for _ in range(5):
