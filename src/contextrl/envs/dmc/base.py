@@ -132,7 +132,7 @@ def task_seed(rng: np.random.Generator) -> int:
     return int(rng.integers(0, 2**32))
 
 
-def _exact(value: float, stock: float) -> float:
+def stock_or_value(value: float, stock: float) -> float:
     """The stock float64 value when ``value`` is its float32 rounding, so defaults restore bit for bit."""
     return float(stock) if np.float32(stock) == np.float32(value) else float(value)
 
@@ -348,7 +348,7 @@ class DmcEnv(HostEnv):
         model, stock = self._physics.model, self._stock
         opt = model.opt
         if "timestep" in values:
-            opt.timestep = _exact(values["timestep"], stock["timestep"])
+            opt.timestep = stock_or_value(values["timestep"], stock["timestep"])
             self.n_sub_steps = max(1, int(round(self.control_timestep / opt.timestep)))
         if "gravity" in values:
             self._apply_gravity(values["gravity"])
@@ -364,12 +364,12 @@ class DmcEnv(HostEnv):
             model.actuator_biasprm[:, :3] = stock["biasprm"][:, :3] * strength
             model.actuator_forcerange[:] = stock["forcerange"] * strength
         if "density" in values:
-            opt.density = _exact(values["density"], stock["density"])
+            opt.density = stock_or_value(values["density"], stock["density"])
         if "viscosity" in values:
-            opt.viscosity = _exact(values["viscosity"], stock["viscosity"])
+            opt.viscosity = stock_or_value(values["viscosity"], stock["viscosity"])
         for axis, name in enumerate(("wind_x", "wind_y", "wind_z")):
             if name in values:
-                opt.wind[axis] = _exact(values[name], stock["wind"][axis])
+                opt.wind[axis] = stock_or_value(values[name], stock["wind"][axis])
 
     def _apply_gravity(self, gravity: float) -> None:
         opt, stock = self._physics.model.opt, self._stock
@@ -380,7 +380,7 @@ class DmcEnv(HostEnv):
             opt.gravity[:] = stock["gravity"]
             return
         opt.disableflags = stock["disableflags"] & ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
-        opt.gravity[:] = (0.0, 0.0, -_exact(gravity, stock_magnitude))
+        opt.gravity[:] = (0.0, 0.0, -stock_or_value(gravity, stock_magnitude))
 
     def _after_initialize(self, values: dict[str, float]) -> None:
         """Change the start state the stock task drew, inside the reset (domains override)."""

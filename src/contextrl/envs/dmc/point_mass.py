@@ -92,10 +92,14 @@ class DmcPointMass(base.DmcEnv):
             "area_size",
         }
 
+    def area_scale(self, area_size: float) -> float:
+        """The arena's size relative to the stock one (exactly 1 at the default)."""
+        stock_area = self.context_space.features["area_size"].default
+        return base.stock_or_value(area_size, stock_area) / stock_area
+
     def reachable(self, area_size: float) -> float:
         """Half-width of the square the ball's centre can reach (the joint range) for an arena."""
-        stock_half_range = float(self._stock_area["jnt_range"][0, 1])
-        return stock_half_range * area_size / self.context_space.features["area_size"].default
+        return float(self._stock_area["jnt_range"][0, 1]) * self.area_scale(area_size)
 
     def _check_combination(self, values: dict[str, float]) -> None:
         limit = self.reachable(values["area_size"])
@@ -109,7 +113,7 @@ class DmcPointMass(base.DmcEnv):
     def _apply_structure(self, values: dict[str, float]) -> None:
         model, named = self._physics.model, self._physics.named.model
         stock = self._stock_area
-        scale = base._exact(values["area_size"], 0.6) / 0.6
+        scale = self.area_scale(values["area_size"])
         model.jnt_range[:] = stock["jnt_range"] * scale
         named.geom_size["ground"] = stock["ground"] * np.array([scale, scale, 1.0])
         for name, (position_axis, size_axis) in WALLS.items():
@@ -122,7 +126,7 @@ class DmcPointMass(base.DmcEnv):
         named.cam_pos["fixed"] = stock["camera"] * scale
         named.geom_pos["target", "x"] = values["target_x"]
         named.geom_pos["target", "y"] = values["target_y"]
-        mass = base._exact(values["mass"], self._stock_mass[self._ball])
+        mass = base.stock_or_value(values["mass"], self._stock_mass[self._ball])
         if self._applied.get("mass") != mass:
             ratio = mass / self._stock_mass[self._ball]
             model.body_mass[self._ball] = mass
