@@ -33,9 +33,7 @@ def main() -> None:
         choices=["ppo", "c51"],
         help="c51: the paper's C51 (256×256, 51 atoms)",
     )
-    parser.add_argument(
-        "--batch-size", type=int, default=64, help="agents per vmapped chunk (128 hangs XLA on CPU)"
-    )
+    parser.add_argument("--batch-size", type=int, default=128, help="agents per vmapped chunk")
     parser.add_argument("--max-chunks", type=int, default=None, help="time only this many chunks")
     parser.add_argument("--out", default=None, help="run directory (default: a temporary one)")
     args = parser.parse_args()

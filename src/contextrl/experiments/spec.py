@@ -368,6 +368,8 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
     for name, value in data.items():
         if value is not None and "tuple" in str(hints[name]) and isinstance(value, list):
             value = tuple(value)
+        if name in ("variants", "modes", "magnitudes") and isinstance(value, (str, int, float)):
+            value = (value,)  # one value where a list is expected
         values[name] = value
     if "name" not in values or not values["name"]:
         values["name"] = protocol
