@@ -78,19 +78,18 @@ class VectorPrograms:
         row = self._row(obs, jnp.float32(0), False, False, obs, index, index, context)
         return carry, row
 
-    def _step(self, words, copies, table):
+    def _step(self, carry, action_words, copies, table):
         """All copies advance; only if some episode ended are the restarts computed (one cond).
 
         Same-step auto-reset as ``Env.step_then_reset``, but the reset (random start states, context
         choice) runs only on steps where an episode ends, which is most of the cost for few copies.
         """
-        size = self.packer.size
-        state, context, index, episode, key_bits = jax.vmap(self.packer.unpack)(words[:, :size])
+        state, context, index, episode, key_bits = jax.vmap(self.packer.unpack)(carry)
         if self.discrete:
-            action = jax.lax.bitcast_convert_type(words[:, size], jnp.int32)
+            action = jax.lax.bitcast_convert_type(action_words[:, 0], jnp.int32)
         else:
-            action = jax.lax.bitcast_convert_type(words[:, size:], jnp.float32).reshape(
-                (words.shape[0], *self.env.action_space.shape)
+            action = jax.lax.bitcast_convert_type(action_words, jnp.float32).reshape(
+                (carry.shape[0], *self.env.action_space.shape)
             )
         keys = jax.vmap(jax.random.wrap_key_data)(key_bits)
         state, final_obs, reward, terminated, truncated = jax.vmap(partial(advance, self.env))(
@@ -218,7 +217,6 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         )
         self.packer = self.programs.packer
         self.table = jnp.asarray(self.schedule.table)
-        self.action_words = 1 if self._discrete else int(np.prod(self.single_action_space.shape))
         self._ids_are_indices = self._id_table.dtype != object and np.array_equal(
             self._id_table, np.arange(len(self._id_table))
         )
@@ -229,9 +227,8 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             for name, f in self.context_space.features.items()
             if f.kind == "categorical"
         }
-        self._copies = np.arange(self.num_envs, dtype=np.uint32)
-        self._carry: np.ndarray | None = None
-        self._buffer = np.zeros((self.num_envs, self.packer.size + self.action_words), np.uint32)
+        self._copies = jnp.arange(self.num_envs, dtype=jnp.uint32)
+        self._carry: jax.Array | None = None  # stays on the device between steps
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
@@ -277,8 +274,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         super().reset(seed=seed)
         seed_key = jax.random.key(int(self.np_random.integers(2**32, dtype=np.uint64)))
         seed_bits = np.asarray(jax.random.key_data(seed_key), np.uint32)
-        carry, rows = self.programs.reset(seed_bits, self._copies, self.table)
-        self._carry = np.asarray(carry)
+        self._carry, rows = self.programs.reset(seed_bits, self._copies, self.table)
         rows = np.asarray(rows)
         return self._observations(rows[:, : self.obs_size].copy()), self._info(rows)
 
@@ -304,11 +300,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
     def step(self, actions):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        size = self.packer.size
-        self._buffer[:, :size] = self._carry
-        self._buffer[:, size:] = self._action_words(actions)
-        carry, rows = self.programs.step(self._buffer, self._copies, self.table)
-        self._carry = np.asarray(carry)
+        self._carry, rows = self.programs.step(
+            self._carry, self._action_words(actions), self._copies, self.table
+        )
         rows = np.asarray(rows)
         d = self.obs_size
         obs = rows[:, :d].copy()
@@ -342,7 +336,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         from contextrl.render import draw
 
         frames = []
-        for words in self._carry:
+        for words in np.asarray(self._carry):
             state, context, *_ = self.packer.unpack_host(words)
             frames.append(draw(self.env, state.physics, context))
         return tuple(frames)
