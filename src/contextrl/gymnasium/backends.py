@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
+from jax.sharding import SingleDeviceSharding
 
 from contextrl.context.observation import ContextObservation
 from contextrl.core.env import Env
@@ -34,6 +35,18 @@ def _float_bits(x: jax.Array) -> jax.Array:
 
 def _bits_float(bits: jax.Array) -> jax.Array:
     return lax.bitcast_convert_type(bits, jnp.float32)
+
+
+def cpu_jit(function: Callable) -> Callable:
+    """``jax.jit`` pinned to the CPU: one environment's step is far too small to gain from a GPU,
+    where every call would add a kernel launch and two transfers. (The vector env stays on the
+    default device, where many copies do gain.)"""
+    cpu = SingleDeviceSharding(jax.devices("cpu")[0])
+    return jax.jit(function, in_shardings=cpu, out_shardings=cpu)
+
+
+def on_cpu(array: Any) -> jax.Array:
+    return jax.device_put(array, jax.devices("cpu")[0])
 
 
 def episode_keys(key_bits: jax.Array, episode: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -95,9 +108,9 @@ class JaxPrograms:
         key = jax.random.key(0)
         state_shape = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
         self.packer = Packer((state_shape, jax.random.key_data(key), env.default_context()))
-        self.start = jax.jit(self._start_fn)
-        self.start_with = jax.jit(self._start_with_fn)
-        self.step = jax.jit(self._step_fn)
+        self.start = cpu_jit(self._start_fn)
+        self.start_with = cpu_jit(self._start_with_fn)
+        self.step = cpu_jit(self._step_fn)
 
     def _begin(self, env_key, context_vector, index):
         reset_key, step_key = jax.random.split(env_key)
@@ -150,7 +163,7 @@ class JaxBackend:
             None if key is None else ("single", env, key), lambda: JaxPrograms(env, schedule)
         )
         self.packer = self.programs.packer
-        self.table = jnp.asarray(schedule.table)
+        self.table = on_cpu(schedule.table)
         self.action_space = env.action_space.to_gymnasium()
         self.flat_space = env.observation_space.to_gymnasium()
         self.base_size = int(np.prod(env.base_observation_space.shape))
@@ -249,9 +262,9 @@ class HostBackend:
             dtype=np.float32,
         )
         self.obs_size = self.flat_space.shape[0]
-        self.table = jnp.asarray(schedule.table)
-        self._choose = jax.jit(self._choose_fn)
-        self._values = jax.jit(lambda context, key: obs_context.values(self.space, context, key))
+        self.table = on_cpu(schedule.table)
+        self._choose = cpu_jit(self._choose_fn)
+        self._values = cpu_jit(lambda context, key: obs_context.values(self.space, context, key))
         self.time = 0
         self.context = None
         self._episode_key = None
