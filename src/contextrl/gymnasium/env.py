@@ -136,9 +136,8 @@ class ContextualGymEnv(gymnasium.Env):
         self.context_space = inner.context_space
         self.obs_context_as_dict = obs_context_as_dict
         self.render_mode = render_mode
-        self.render_world_box: tuple[float, float, float, float] | None = (
-            None  # None: fit the context
-        )
+        # The world rectangle JAX renderings show; None fits each context (grids share one).
+        self.render_world_box: tuple[float, float, float, float] | None = None
         self.copy_index, self.num_copies = int(copy_index), int(num_copies)
         self.metadata = {**self.metadata, "render_fps": render_fps(inner)}
         self.action_space = self.backend.action_space

@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Callable, Sequence
-from functools import partial
 from typing import Any
 
 import gymnasium
@@ -92,9 +91,9 @@ class VectorPrograms:
                 (carry.shape[0], *self.env.action_space.shape)
             )
         keys = jax.vmap(jax.random.wrap_key_data)(key_bits)
-        state, final_obs, reward, terminated, truncated = jax.vmap(partial(advance, self.env))(
-            keys, state, action, context
-        )
+        state, final_obs, reward, terminated, truncated = jax.vmap(
+            functools.partial(advance, self.env)
+        )(keys, state, action, context)
         done = terminated | truncated
         restart = jax.lax.cond(
             done.any(),
