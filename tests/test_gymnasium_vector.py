@@ -23,7 +23,7 @@ def test_make_vec_gives_one_compiled_vector_env_with_per_copy_contexts():
     np.testing.assert_array_equal(info["context_id"], [0, 1, 0])
     np.testing.assert_allclose(obs[:, 4], [0.25, 1.0, 0.25])
     np.testing.assert_allclose(info["context"]["length"], [0.25, 1.0, 0.25])
-    named = ContextualVectorEnv("CartPole", num_envs=3, contexts=dict(zip("ab", LENGTHS)))
+    named = ContextualVectorEnv("CartPole", num_envs=3, contexts={"a": LENGTHS[0], "b": LENGTHS[1]})
     assert named.reset(seed=0)[1]["context_id"].tolist() == ["a", "b", "a"]
 
 
