@@ -141,3 +141,13 @@ def test_example_specs_are_valid():
     for file in files:
         spec = prepare(yaml.safe_load(file.read_text()))
         assert spec.protocol in file.stem.replace("-", "_") or spec.protocol == "tabular"
+
+
+def test_host_environment_is_refused():
+    import contextrl as crl
+
+    host = [i for i in crl.registered() if crl.spec(i).host]
+    if not host:
+        pytest.skip("no host environment registered (dm_control not installed)")
+    with pytest.raises(SpecError, match="host environment"):
+        prepare({"protocol": "visibility", "env": host[0]})

@@ -133,9 +133,15 @@ class CommonSpec:
         import contextrl as crl
 
         try:
-            crl.spec(self.env)
+            registered = crl.spec(self.env)
         except KeyError as error:
             raise SpecError(f"env: {error.args[0]}") from None
+        if registered.host:
+            jax_envs = [i for i in crl.registered() if not crl.spec(i).host]
+            raise SpecError(
+                f"env: {self.env} is a host environment (stepped outside JAX); the agents here train "
+                f"JAX environments: choose one of {jax_envs}"
+            )
         kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
         return crl.make(self.env, **kwargs)
 
