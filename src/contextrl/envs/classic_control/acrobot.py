@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box, Discrete
 
@@ -116,42 +117,70 @@ class AcrobotContext(ContextBase):
     )
 
 
-def wrap(x, low, high):
+def wrap(x, low, high, xp=jnp):
     """Shift x by whole periods into [low, high], exactly as gymnasium's loop does."""
     period = high - low
-    above = x - period * jnp.ceil((x - high) / period)
-    below = x + period * jnp.ceil((low - x) / period)
-    return jnp.where(x > high, above, jnp.where(x < low, below, x))
+    above = x - period * xp.ceil((x - high) / period)
+    below = x + period * xp.ceil((low - x) / period)
+    return xp.where(x > high, above, xp.where(x < low, below, x))
 
 
-def derivatives(s, torque, c: AcrobotContext) -> jax.Array:
+def derivatives(xp, s, torque, c: AcrobotContext) -> jax.Array:
     """Time derivative of (θ1, θ2, θ̇1, θ̇2) under a torque on the second joint (the book's equations)."""
     theta1, theta2, dtheta1, dtheta2 = s
     m1, m2, l1 = c.LINK_MASS_1, c.LINK_MASS_2, c.LINK_LENGTH_1
     lc1, lc2, inertia = c.LINK_COM_POS_1, c.LINK_COM_POS_2, c.LINK_MOI
-    d1 = m1 * lc1**2 + m2 * (l1**2 + lc2**2 + 2 * l1 * lc2 * jnp.cos(theta2)) + 2 * inertia
-    d2 = m2 * (lc2**2 + l1 * lc2 * jnp.cos(theta2)) + inertia
-    phi2 = m2 * lc2 * GRAVITY * jnp.cos(theta1 + theta2 - jnp.pi / 2.0)
+    d1 = m1 * lc1**2 + m2 * (l1**2 + lc2**2 + 2 * l1 * lc2 * xp.cos(theta2)) + 2 * inertia
+    d2 = m2 * (lc2**2 + l1 * lc2 * xp.cos(theta2)) + inertia
+    phi2 = m2 * lc2 * GRAVITY * xp.cos(theta1 + theta2 - xp.pi / 2.0)
     phi1 = (
-        -m2 * l1 * lc2 * dtheta2**2 * jnp.sin(theta2)
-        - 2 * m2 * l1 * lc2 * dtheta2 * dtheta1 * jnp.sin(theta2)
-        + (m1 * lc1 + m2 * l1) * GRAVITY * jnp.cos(theta1 - jnp.pi / 2)
+        -m2 * l1 * lc2 * dtheta2**2 * xp.sin(theta2)
+        - 2 * m2 * l1 * lc2 * dtheta2 * dtheta1 * xp.sin(theta2)
+        + (m1 * lc1 + m2 * l1) * GRAVITY * xp.cos(theta1 - xp.pi / 2)
         + phi2
     )
-    ddtheta2 = (torque + d2 / d1 * phi1 - m2 * l1 * lc2 * dtheta1**2 * jnp.sin(theta2) - phi2) / (
+    ddtheta2 = (torque + d2 / d1 * phi1 - m2 * l1 * lc2 * dtheta1**2 * xp.sin(theta2) - phi2) / (
         m2 * lc2**2 + inertia - d2**2 / d1
     )
     ddtheta1 = -(d2 * ddtheta2 + phi1) / d1
-    return jnp.stack([dtheta1, dtheta2, ddtheta1, ddtheta2])
+    return xp.stack([dtheta1, dtheta2, ddtheta1, ddtheta2])
 
 
-def rk4(s, torque, c: AcrobotContext, dt: float) -> jax.Array:
+def rk4(xp, s, torque, c: AcrobotContext, dt: float) -> jax.Array:
     """One classical Runge–Kutta step of length dt."""
-    k1 = derivatives(s, torque, c)
-    k2 = derivatives(s + dt / 2 * k1, torque, c)
-    k3 = derivatives(s + dt / 2 * k2, torque, c)
-    k4 = derivatives(s + dt * k3, torque, c)
+    k1 = derivatives(xp, s, torque, c)
+    k2 = derivatives(xp, s + dt / 2 * k1, torque, c)
+    k3 = derivatives(xp, s + dt / 2 * k2, torque, c)
+    k4 = derivatives(xp, s + dt * k3, torque, c)
     return s + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def dynamics(xp, state, torque, context: AcrobotContext):
+    """One step under ``torque`` (action − 1, plus any noise): ``(next_state, reward, terminated)``.
+
+    Written against the array namespace ``xp`` (``jax.numpy`` or ``contextrl.core.scalar``); on the
+    host ``state`` is a ``scalar.Vector``, whose arithmetic is elementwise like an array's.
+    """
+    s = rk4(xp, state, torque, context, DT)
+    s = xp.stack(
+        [
+            wrap(s[0], -xp.pi, xp.pi, xp),
+            wrap(s[1], -xp.pi, xp.pi, xp),
+            xp.clip(s[2], -context.MAX_VEL_1, context.MAX_VEL_1),
+            xp.clip(s[3], -context.MAX_VEL_2, context.MAX_VEL_2),
+        ]
+    )
+    height = -context.LINK_LENGTH_1 * xp.cos(s[0]) - context.LINK_LENGTH_2 * xp.cos(s[0] + s[1])
+    terminated = height > GOAL_HEIGHT
+    return s, xp.where(terminated, 0.0, -1.0), terminated
+
+
+def observation(xp, state):
+    """(cos θ1, sin θ1, cos θ2, sin θ2, θ̇1, θ̇2) of the state (θ1, θ2, θ̇1, θ̇2)."""
+    theta1, theta2, dtheta1, dtheta2 = state
+    return xp.stack(
+        [xp.cos(theta1), xp.sin(theta1), xp.cos(theta2), xp.sin(theta2), dtheta1, dtheta2]
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -186,23 +215,17 @@ class Acrobot(Env):
             - 1.0
             + jax.random.uniform(key, (), minval=-noise, maxval=noise)
         )
-        s = rk4(state, torque, context, DT)
-        s = jnp.stack(
-            [
-                wrap(s[0], -jnp.pi, jnp.pi),
-                wrap(s[1], -jnp.pi, jnp.pi),
-                jnp.clip(s[2], -context.MAX_VEL_1, context.MAX_VEL_1),
-                jnp.clip(s[3], -context.MAX_VEL_2, context.MAX_VEL_2),
-            ]
-        )
-        height = -context.LINK_LENGTH_1 * jnp.cos(s[0]) - context.LINK_LENGTH_2 * jnp.cos(
-            s[0] + s[1]
-        )
-        terminated = height > GOAL_HEIGHT
-        return s, jnp.where(terminated, 0.0, -1.0), terminated
+        return dynamics(jnp, state, torque, context)
 
     def observe(self, state, context) -> jax.Array:
-        theta1, theta2, dtheta1, dtheta2 = state
-        return jnp.stack(
-            [jnp.cos(theta1), jnp.sin(theta1), jnp.cos(theta2), jnp.sin(theta2), dtheta1, dtheta2]
-        )
+        return observation(jnp, state)
+
+    def host_transition(self, state, action: int, context, rng: np.random.Generator):
+        """The same step on Python floats (see ``contextrl.core.scalar``). The torque noise, if any,
+        is drawn from ``rng`` (the episode's NumPy Generator), so it differs from the JAX path's."""
+        noise = context.torque_noise_max
+        torque = action - 1.0 + (float(rng.uniform(-noise, noise)) if noise > 0 else 0.0)
+        return dynamics(scalar, scalar.stack(state), torque, context)
+
+    def host_observe(self, state, context):
+        return observation(scalar, state)

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box, Discrete
 
@@ -56,6 +57,35 @@ class CartPoleContext(ContextBase):
     )
 
 
+def dynamics(xp, state, action, context: CartPoleContext):
+    """One Euler step under a push left (0) or right (1): ``(next_state, reward, terminated)``.
+
+    Written against the array namespace ``xp`` (``jax.numpy`` or ``contextrl.core.scalar``).
+    """
+    x, x_dot, theta, theta_dot = state
+    total_mass = context.masspole + context.masscart
+    polemass_length = context.masspole * context.length
+    force = xp.where(action == 1, context.force_mag, -context.force_mag)
+    cos_theta, sin_theta = xp.cos(theta), xp.sin(theta)
+    temp = (force + polemass_length * theta_dot**2 * sin_theta) / total_mass
+    theta_acc = (context.gravity * sin_theta - cos_theta * temp) / (
+        context.length * (4.0 / 3.0 - context.masspole * cos_theta**2 / total_mass)
+    )
+    x_acc = temp - polemass_length * theta_acc * cos_theta / total_mass
+    tau = context.tau
+    next_state = xp.stack(
+        [
+            x + tau * x_dot,
+            x_dot + tau * x_acc,
+            theta + tau * theta_dot,
+            theta_dot + tau * theta_acc,
+        ]
+    )
+    x, theta = next_state[0], next_state[2]
+    terminated = (xp.abs(x) > X_THRESHOLD) | (xp.abs(theta) > THETA_THRESHOLD)
+    return next_state, xp.float32(1.0), terminated
+
+
 @dataclasses.dataclass(frozen=True)
 class CartPole(Env):
     """Balance a pole on a cart by pushing left or right; +1 per step until it falls (500 steps)."""
@@ -79,28 +109,14 @@ class CartPole(Env):
         )
 
     def transition(self, key, state, action, context: CartPoleContext):
-        x, x_dot, theta, theta_dot = state
-        total_mass = context.masspole + context.masscart
-        polemass_length = context.masspole * context.length
-        force = jnp.where(action == 1, context.force_mag, -context.force_mag)
-        cos_theta, sin_theta = jnp.cos(theta), jnp.sin(theta)
-        temp = (force + polemass_length * theta_dot**2 * sin_theta) / total_mass
-        theta_acc = (context.gravity * sin_theta - cos_theta * temp) / (
-            context.length * (4.0 / 3.0 - context.masspole * cos_theta**2 / total_mass)
-        )
-        x_acc = temp - polemass_length * theta_acc * cos_theta / total_mass
-        tau = context.tau
-        next_state = jnp.stack(
-            [
-                x + tau * x_dot,
-                x_dot + tau * x_acc,
-                theta + tau * theta_dot,
-                theta_dot + tau * theta_acc,
-            ]
-        )
-        x, theta = next_state[0], next_state[2]
-        terminated = (jnp.abs(x) > X_THRESHOLD) | (jnp.abs(theta) > THETA_THRESHOLD)
-        return next_state, jnp.float32(1.0), terminated
+        return dynamics(jnp, state, action, context)
 
     def observe(self, state, context) -> jax.Array:
+        return state
+
+    def host_transition(self, state, action: int, context, rng: np.random.Generator):
+        """The same step on Python floats (see ``contextrl.core.scalar``)."""
+        return dynamics(scalar, state, action, context)
+
+    def host_observe(self, state, context):
         return state

@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box, Discrete
 
@@ -50,15 +51,18 @@ def hill_init(key, context) -> jax.Array:
     return low + jax.random.uniform(key, (2,)) * (high - low)
 
 
-def hill_step(state, push, context) -> tuple[jax.Array, jax.Array]:
-    """Advance the car by one step under a push; returns (next state, reached the goal)."""
+def hill_step(xp, state, push, context) -> tuple[jax.Array, jax.Array]:
+    """Advance the car by one step under a push; returns (next state, reached the goal).
+
+    Written against the array namespace ``xp`` (``jax.numpy`` or ``contextrl.core.scalar``).
+    """
     position, velocity = state
-    velocity = velocity + push - context.gravity * jnp.cos(3 * position)
-    velocity = jnp.clip(velocity, -context.max_speed, context.max_speed)
-    position = jnp.clip(position + velocity, context.min_position, context.max_position)
-    velocity = jnp.where((position <= context.min_position) & (velocity < 0), 0.0, velocity)
+    velocity = velocity + push - context.gravity * xp.cos(3 * position)
+    velocity = xp.clip(velocity, -context.max_speed, context.max_speed)
+    position = xp.clip(position + velocity, context.min_position, context.max_position)
+    velocity = xp.where((position <= context.min_position) & (velocity < 0), 0.0, velocity)
     reached = (position >= context.goal_position) & (velocity >= context.goal_velocity)
-    return jnp.stack([position, velocity]), reached
+    return xp.stack([position, velocity]), reached
 
 
 def hill_observation_space(context_class) -> Box:
@@ -73,6 +77,13 @@ class MountainCarContext(HillContext):
     """Context features of MountainCar."""
 
     force: float = feature(0.001, 0.0001, 0.01, doc="velocity change of one push")
+
+
+def dynamics(xp, state, action, context: MountainCarContext):
+    """One step under a push left (0), none (1) or right (2): ``(next_state, reward, terminated)``."""
+    push = (action - 1) * context.force
+    next_state, reached = hill_step(xp, state, push, context)
+    return next_state, xp.float32(-1.0), reached
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,9 +105,14 @@ class MountainCar(Env):
         return hill_init(key, context)
 
     def transition(self, key, state, action, context):
-        push = (action - 1) * context.force
-        next_state, reached = hill_step(state, push, context)
-        return next_state, jnp.float32(-1.0), reached
+        return dynamics(jnp, state, action, context)
 
     def observe(self, state, context) -> jax.Array:
+        return state
+
+    def host_transition(self, state, action: int, context, rng: np.random.Generator):
+        """The same step on Python floats (see ``contextrl.core.scalar``)."""
+        return dynamics(scalar, state, action, context)
+
+    def host_observe(self, state, context):
         return state

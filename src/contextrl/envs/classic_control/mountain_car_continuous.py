@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import context_type, feature
+from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
 from contextrl.envs.classic_control.mountain_car import (
@@ -29,6 +30,17 @@ class MountainCarContinuousContext(HillContext):
 
     goal_position: float = feature(0.45, -0.5, 1.5, doc="position to reach", affects=("goal",))
     power: float = feature(0.0015, 0.0001, 0.01, doc="velocity change of a full push")
+
+
+def dynamics(xp, state, action, context: MountainCarContinuousContext):
+    """One step under a scalar push ``action`` (clipped to [−1, 1]): ``(next_state, reward, terminated)``.
+
+    Written against the array namespace ``xp`` (``jax.numpy`` or ``contextrl.core.scalar``).
+    """
+    push = xp.clip(action, -1.0, 1.0) * context.power
+    next_state, reached = hill_step(xp, state, push, context)
+    reward = xp.where(reached, 100.0, 0.0) - 0.1 * action**2
+    return next_state, reward, reached
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,11 +62,14 @@ class MountainCarContinuous(Env):
         return hill_init(key, context)
 
     def transition(self, key, state, action, context):
-        action = jnp.reshape(action, ())
-        push = jnp.clip(action, -1.0, 1.0) * context.power
-        next_state, reached = hill_step(state, push, context)
-        reward = jnp.where(reached, 100.0, 0.0) - 0.1 * action**2
-        return next_state, reward, reached
+        return dynamics(jnp, state, jnp.reshape(action, ()), context)
 
     def observe(self, state, context) -> jax.Array:
+        return state
+
+    def host_transition(self, state, action: list[float], context, rng: np.random.Generator):
+        """The same step on Python floats (see ``contextrl.core.scalar``)."""
+        return dynamics(scalar, state, action[0], context)
+
+    def host_observe(self, state, context):
         return state

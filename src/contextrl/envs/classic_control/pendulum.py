@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
 
@@ -60,9 +61,33 @@ class PendulumContext(ContextBase):
     )
 
 
-def angle_normalize(angle):
+def angle_normalize(xp, angle):
     """Map an angle to [−π, π)."""
-    return ((angle + jnp.pi) % (2 * jnp.pi)) - jnp.pi
+    return ((angle + xp.pi) % (2 * xp.pi)) - xp.pi
+
+
+def dynamics(xp, state, u, context: PendulumContext):
+    """One step under the action ``u`` (a scalar in [−2, 2]): ``(next_state, reward, terminated)``.
+
+    Written against the array namespace ``xp`` (``jax.numpy`` or ``contextrl.core.scalar``).
+    """
+    theta, theta_dot = state
+    u = xp.clip(u, -NOMINAL_TORQUE, NOMINAL_TORQUE)
+    torque = u * (context.max_torque / NOMINAL_TORQUE)
+    cost = angle_normalize(xp, theta) ** 2 + 0.1 * theta_dot**2 + 0.001 * torque**2
+    g, m, length, dt = context.g, context.m, context.l, context.dt
+    theta_dot = (
+        theta_dot + (3 * g / (2 * length) * xp.sin(theta) + 3.0 / (m * length**2) * torque) * dt
+    )
+    theta_dot = xp.clip(theta_dot, -context.max_speed, context.max_speed)
+    theta = theta + theta_dot * dt
+    return xp.stack([theta, theta_dot]), -cost, xp.zeros((), bool)
+
+
+def observation(xp, state):
+    """(cos θ, sin θ, θ̇) of the state (θ, θ̇)."""
+    theta, theta_dot = state
+    return xp.stack([xp.cos(theta), xp.sin(theta), theta_dot])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,19 +111,14 @@ class Pendulum(Env):
         return jax.random.uniform(key, (2,), minval=-high, maxval=high)
 
     def transition(self, key, state, action, context: PendulumContext):
-        theta, theta_dot = state
-        u = jnp.clip(jnp.reshape(action, ()), -NOMINAL_TORQUE, NOMINAL_TORQUE)
-        torque = u * (context.max_torque / NOMINAL_TORQUE)
-        cost = angle_normalize(theta) ** 2 + 0.1 * theta_dot**2 + 0.001 * torque**2
-        g, m, length, dt = context.g, context.m, context.l, context.dt
-        theta_dot = (
-            theta_dot
-            + (3 * g / (2 * length) * jnp.sin(theta) + 3.0 / (m * length**2) * torque) * dt
-        )
-        theta_dot = jnp.clip(theta_dot, -context.max_speed, context.max_speed)
-        theta = theta + theta_dot * dt
-        return jnp.stack([theta, theta_dot]), -cost, jnp.zeros((), bool)
+        return dynamics(jnp, state, jnp.reshape(action, ()), context)
 
     def observe(self, state, context) -> jax.Array:
-        theta, theta_dot = state
-        return jnp.stack([jnp.cos(theta), jnp.sin(theta), theta_dot])
+        return observation(jnp, state)
+
+    def host_transition(self, state, action: list[float], context, rng: np.random.Generator):
+        """The same step on Python floats (see ``contextrl.core.scalar``)."""
+        return dynamics(scalar, state, action[0], context)
+
+    def host_observe(self, state, context):
+        return observation(scalar, state)
