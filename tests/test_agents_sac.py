@@ -71,7 +71,7 @@ def test_context_reaches_the_policy(pendulum):
     context = pendulum.default_context()
     heavy = pendulum.context(m=3.0, g=15.0)
     for mode, differs in (("concat_all", True), ("hidden", False), ("gated", False)):
-        config = sac.SACConfig(context_obs=mode)
+        config = sac.SACConfig(context_obs=mode, hidden_sizes=(16,))
         params = sac.init_params(config, pendulum, context, jax.random.key(4))
         if mode == "concat_all":  # the initial head is small: scale it so the action moves
             params["actor"]["out"]["kernel"] = params["actor"]["out"]["kernel"] * 100

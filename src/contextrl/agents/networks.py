@@ -38,10 +38,29 @@ class ConfigError(ValueError):
     """An invalid agent configuration, raised before anything is compiled."""
 
 
+def orthogonal(key, n_in: int, n_out: int, scale: float) -> jax.Array:
+    """A random (semi-)orthogonal matrix times ``scale``, by Gram–Schmidt on a Gaussian matrix.
+
+    Written with matmuls instead of ``jax.nn.initializers.orthogonal``: its LAPACK QR kernel, batched
+    under ``vmap`` inside a compiled loop, can deadlock XLA's CPU thread pool on a 2-core machine.
+    """
+    long, short = max(n_in, n_out), min(n_in, n_out)
+    gaussian = jax.random.normal(key, (long, short), jnp.float32)
+    columns = jnp.arange(short)
+
+    def orthonormalise(i, q):
+        vector = q[:, i]
+        for _ in range(2):  # twice: "twice is enough" for numerical orthogonality
+            vector = vector - q @ jnp.where(columns < i, q.T @ vector, 0.0)
+        return q.at[:, i].set(vector / jnp.linalg.norm(vector))
+
+    q = jax.lax.fori_loop(0, short, orthonormalise, gaussian)
+    return scale * (q if n_in >= n_out else q.T)
+
+
 def dense_init(key, n_in: int, n_out: int, scale: float) -> Params:
     """Orthogonal weights scaled by ``scale`` and zero biases (the PPO/CleanRL initialisation)."""
-    kernel = jax.nn.initializers.orthogonal(scale)(key, (n_in, n_out), jnp.float32)
-    return {"kernel": kernel, "bias": jnp.zeros((n_out,), jnp.float32)}
+    return {"kernel": orthogonal(key, n_in, n_out, scale), "bias": jnp.zeros((n_out,), jnp.float32)}
 
 
 def dense(params: Params, x: jax.Array) -> jax.Array:

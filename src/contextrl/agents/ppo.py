@@ -16,7 +16,7 @@ observation instead of counting as failures.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import jax
@@ -42,6 +42,7 @@ from contextrl.agents.networks import (
     check_positive,
     context_input,
 )
+from contextrl.context.distributions import DISTRIBUTIONS
 from contextrl.core.spaces import Box, Discrete
 
 
@@ -218,27 +219,26 @@ def init_params(config: PPOConfig, env, train_contexts: Any, key) -> dict:
     return _init_params(_networks(config, env, train_contexts), config, key)
 
 
-def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
-    space = env.context_space
+def _learner(config: PPOConfig, nets: _Networks):
+    """The optimiser, the value function and ``learn``: GAE over a rollout, then clipped-PPO epochs.
+
+    ``learn(params, opt_state, rollout, last_value, key)`` takes a rollout of arrays shaped
+    (num_steps, num_envs, ...): observations, context vectors, actions, log-probabilities, values,
+    rewards (time-limit cuts already bootstrapped) and episode ends.
+    """
     num_envs, num_steps = config.num_envs, config.num_steps
-    num_updates = config.num_updates
     minibatch_size = num_envs * num_steps // config.num_minibatches
     optimizer = optax.chain(
         optax.clip_by_global_norm(config.max_grad_norm),
         optax.adam(
             anneal(
                 config.learning_rate,
-                num_updates * config.update_epochs * config.num_minibatches,
+                config.num_updates * config.update_epochs * config.num_minibatches,
                 config.anneal_lr,
             ),
             eps=1e-5,
         ),
     )
-    progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
 
     def value(params, obs, context_vector):
         return nets.critic.apply(params["critic"], obs, context_vector).squeeze(-1)
@@ -262,6 +262,70 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
         entropy = entropy.mean()
         total = actor_loss + config.vf_coef * value_loss - config.ent_coef * entropy
         return total, (actor_loss, value_loss, entropy)
+
+    def learn(params, opt_state, rollout, last_value, key):
+        observations, context_vectors, actions, log_probs, values, rewards, dones = rollout
+
+        def gae_step(carry, inputs):
+            advantage, next_value = carry
+            reward, state_value, done = inputs
+            not_done = 1.0 - done
+            delta = reward + config.gamma * next_value * not_done - state_value
+            advantage = delta + config.gamma * config.gae_lambda * not_done * advantage
+            return (advantage, state_value), advantage
+
+        _, advantages = jax.lax.scan(
+            gae_step,
+            (jnp.zeros_like(last_value), last_value),
+            (rewards, values, dones.astype(jnp.float32)),
+            reverse=True,
+        )
+        targets = advantages + values
+        batch = (observations, context_vectors, actions, log_probs, values, advantages, targets)
+        batch = jax.tree_util.tree_map(
+            lambda x: x.reshape((num_envs * num_steps,) + x.shape[2:]), batch
+        )
+
+        def epoch(carry, _):
+            params, opt_state, key = carry
+            key, perm_key = jax.random.split(key)
+            permutation = jax.random.permutation(perm_key, num_envs * num_steps)
+            minibatches = jax.tree_util.tree_map(
+                lambda x: x[permutation].reshape(
+                    (config.num_minibatches, minibatch_size) + x.shape[1:]
+                ),
+                batch,
+            )
+
+            def minibatch_step(carry, minibatch):
+                params, opt_state = carry
+                grads, losses = jax.grad(loss_fn, has_aux=True)(params, minibatch)
+                updates, opt_state = optimizer.update(grads, opt_state, params)
+                return (optax.apply_updates(params, updates), opt_state), losses
+
+            (params, opt_state), losses = jax.lax.scan(
+                minibatch_step, (params, opt_state), minibatches
+            )
+            return (params, opt_state, key), losses
+
+        (params, opt_state, key), losses = jax.lax.scan(
+            epoch, (params, opt_state, key), None, config.update_epochs
+        )
+        return params, opt_state, key, losses
+
+    return optimizer, value, learn
+
+
+def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs, num_steps = config.num_envs, config.num_steps
+    num_updates = config.num_updates
+    optimizer, value, learn = _learner(config, nets)
+    progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
 
     def train(key, contexts: Any = None) -> TrainResult:
         cenv = build_env(contexts)
@@ -295,54 +359,8 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
             (params, env_state, obs, log, step, key), rollout = jax.lax.scan(
                 env_step, (params, env_state, obs, log, step, key), None, num_steps
             )
-            observations, context_vectors, actions, log_probs, values, rewards, dones = rollout
             last_value = value(params, obs, context_of(env_state.context))
-
-            def gae_step(carry, inputs):
-                advantage, next_value = carry
-                reward, state_value, done = inputs
-                not_done = 1.0 - done
-                delta = reward + config.gamma * next_value * not_done - state_value
-                advantage = delta + config.gamma * config.gae_lambda * not_done * advantage
-                return (advantage, state_value), advantage
-
-            _, advantages = jax.lax.scan(
-                gae_step,
-                (jnp.zeros_like(last_value), last_value),
-                (rewards, values, dones.astype(jnp.float32)),
-                reverse=True,
-            )
-            targets = advantages + values
-            batch = (observations, context_vectors, actions, log_probs, values, advantages, targets)
-            batch = jax.tree_util.tree_map(
-                lambda x: x.reshape((num_envs * num_steps,) + x.shape[2:]), batch
-            )
-
-            def epoch(carry, _):
-                params, opt_state, key = carry
-                key, perm_key = jax.random.split(key)
-                permutation = jax.random.permutation(perm_key, num_envs * num_steps)
-                minibatches = jax.tree_util.tree_map(
-                    lambda x: x[permutation].reshape(
-                        (config.num_minibatches, minibatch_size) + x.shape[1:]
-                    ),
-                    batch,
-                )
-
-                def minibatch_step(carry, minibatch):
-                    params, opt_state = carry
-                    grads, losses = jax.grad(loss_fn, has_aux=True)(params, minibatch)
-                    updates, opt_state = optimizer.update(grads, opt_state, params)
-                    return (optax.apply_updates(params, updates), opt_state), losses
-
-                (params, opt_state), losses = jax.lax.scan(
-                    minibatch_step, (params, opt_state), minibatches
-                )
-                return (params, opt_state, key), losses
-
-            (params, opt_state, key), losses = jax.lax.scan(
-                epoch, (params, opt_state, key), None, config.update_epochs
-            )
+            params, opt_state, key, losses = learn(params, opt_state, rollout, last_value, key)
             log, row = log.close_period()
             row["step"] = step
             row["actor_loss"], row["value_loss"], row["entropy"] = (x.mean() for x in losses)
@@ -355,6 +373,165 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
         return TrainResult(params, metrics)
 
     return train
+
+
+def train_gymnasium(
+    config: PPOConfig,
+    env_id: str,
+    train_contexts: Any,
+    key,
+    *,
+    seed: int = 0,
+    vectorization: str = "sync",
+    **env_kwargs: Any,
+) -> TrainResult:
+    """PPO through the gymnasium vector adapter: for host environments (dm_control…) or any id.
+
+    The environment steps on the host (``contextrl.gymnasium.make_vector_env`` with ``num_envs`` copies
+    taking contexts from ``train_contexts`` by ``config.context_selector``); acting and every update
+    are compiled. The context input comes from ``info["context"]`` of each step, normalised by the
+    feature bounds as in :func:`make_train`. Returns the same ``TrainResult``; slower than the JAX path.
+    """
+    from contextrl.gymnasium.vector import make_vector_env
+
+    if config.context_selector == "static" or not isinstance(env_id, str):
+        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
+    resampled = isinstance(train_contexts, Mapping) and any(
+        isinstance(v, DISTRIBUTIONS) for v in train_contexts.values()
+    )
+    selector = {} if resampled else {"context_selector": config.context_selector}
+    envs = make_vector_env(
+        env_id,
+        num_envs=config.num_envs,
+        vectorization=vectorization,
+        contexts=train_contexts,
+        **selector,
+        **env_kwargs,
+    )
+    try:
+        return _train_host(config, envs, train_contexts, key, seed)
+    finally:
+        envs.close()
+
+
+def _train_host(config: PPOConfig, envs, train_contexts, key, seed: int) -> TrainResult:
+    config.validate()
+    space = getattr(envs, "context_space", None) or envs.get_attr("context_space")[0]
+    action_space = envs.single_action_space
+    if hasattr(action_space, "n"):
+        discrete, action_size, low, high = True, int(action_space.n), None, None
+    else:
+        discrete, action_size = False, int(action_space.shape[0])
+        low, high = action_space.low, action_space.high
+    obs_size = int(np.prod(envs.single_observation_space.shape))
+    context = context_input(config.context_obs, space, train_contexts)
+    common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
+    nets = _Networks(
+        ConditionedMLP(obs_size, action_size, out_scale=0.01, **common),
+        ConditionedMLP(obs_size, 1, out_scale=1.0, **common),
+        context,
+        discrete,
+        low,
+        high,
+    )
+    optimizer, value, learn = _learner(config, nets)
+    num_envs, num_steps = config.num_envs, config.num_steps
+    lower = np.asarray(context.lower, np.float32)
+    span = np.maximum(np.asarray(context.upper, np.float32) - lower, 1e-8)
+    names = [space.names[i] for i in context.indices]
+
+    def context_vectors(info) -> np.ndarray:
+        columns = []
+        for name in names:
+            values = np.asarray(info["context"][name])
+            if values.dtype == object:  # categorical features arrive as choice names
+                values = np.array([space.features[name].choices.index(v) for v in values])
+            columns.append(values.astype(np.float32))
+        stacked = np.stack(columns, axis=-1) if columns else np.zeros((num_envs, 0), np.float32)
+        return np.clip((stacked - lower) / span, 0.0, 1.0)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        action, log_prob = _sample(nets, params, obs, context_vector, key)
+        return action, _env_action(nets, action), log_prob, value(params, obs, context_vector)
+
+    value_of = jax.jit(value)
+    learn = jax.jit(learn)
+    key, init_key = jax.random.split(key)
+    params = _init_params(nets, config, init_key)
+    opt_state = optimizer.init(params)
+    obs, info = envs.reset(seed=seed)
+    obs, context_vector = np.asarray(obs, np.float32), context_vectors(info)
+    running_return, running_length = np.zeros(num_envs), np.zeros(num_envs, np.int64)
+    episodes: list[tuple[float, int, int, int]] = []
+    rows = []
+    step = 0
+    for _ in range(config.num_updates):
+        rollout = []
+        finished_before = len(episodes)
+        for _ in range(num_steps):
+            key, action_key = jax.random.split(key)
+            action, env_action, log_prob, state_value = act(params, obs, context_vector, action_key)
+            next_obs, reward, terminated, truncated, info = envs.step(np.asarray(env_action))
+            step += num_envs
+            done = np.asarray(terminated | truncated)
+            reward = np.asarray(reward, np.float32)
+            bootstrap = np.zeros(num_envs, np.float32)
+            cut = np.asarray(truncated & ~terminated)
+            if cut.any():
+                final = np.stack(
+                    [info["final_obs"][i] if cut[i] else obs[i] for i in range(num_envs)]
+                ).astype(np.float32)
+                bootstrap = np.asarray(value_of(params, final, context_vector)) * cut
+            rollout.append(
+                (
+                    obs,
+                    context_vector,
+                    action,
+                    log_prob,
+                    state_value,
+                    reward + config.gamma * bootstrap,
+                    done,
+                )
+            )
+            running_return += reward
+            running_length += 1
+            for i in np.flatnonzero(done):
+                context_id = int(info["final_info"]["context_id"][i])
+                episodes.append((running_return[i], running_length[i], context_id, step))
+            running_return[done], running_length[done] = 0.0, 0
+            obs, context_vector = np.asarray(next_obs, np.float32), context_vectors(info)
+        stacked = tuple(np.stack(column) for column in zip(*rollout, strict=True))
+        last_value = value_of(params, obs, context_vector)
+        params, opt_state, key, losses = learn(params, opt_state, stacked, last_value, key)
+        ended = episodes[finished_before:]
+        rows.append(
+            {
+                "step": step,
+                "episode_return": np.mean([e[0] for e in ended]) if ended else np.nan,
+                "episode_length": np.mean([e[1] for e in ended]) if ended else np.nan,
+                "episodes_finished": len(ended),
+                "actor_loss": float(losses[0].mean()),
+                "value_loss": float(losses[1].mean()),
+                "entropy": float(losses[2].mean()),
+            }
+        )
+        if config.progress_every and len(rows) % config.progress_every == 0:
+            print(
+                f"[PPO host] step {step:>10,}/{config.num_updates * num_envs * num_steps:,}  "
+                f"recent return {rows[-1]['episode_return']:9.2f}",
+                flush=True,
+            )
+    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
+    recent = episodes[-config.episode_log_size :]
+    metrics["episodes"] = {
+        "return": np.asarray([e[0] for e in recent], np.float32),
+        "length": np.asarray([e[1] for e in recent], np.int32),
+        "context_id": np.asarray([e[2] for e in recent], np.int32),
+        "step": np.asarray([e[3] for e in recent], np.int32),
+        "total": len(episodes),
+    }
+    return TrainResult(params, metrics)
 
 
 def make_policy(
