@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+import types
 from collections.abc import Callable, Hashable
 from typing import Any
 
@@ -197,8 +198,8 @@ class JaxBackend:
         words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
         return self._unpack_start(np.asarray(self.programs.start_with(words)))
 
-    def _write_action(self, action: Any) -> None:
-        """Validate ``action`` and write its bits into the input vector's action slot."""
+    def _checked_action(self, action: Any) -> int | np.ndarray:
+        """``action`` as an int (discrete) or a float32 array of the action's shape, else ValueError."""
         if self._discrete:
             try:
                 index = operator.index(action)
@@ -208,15 +209,22 @@ class JaxBackend:
                 raise ValueError(
                     f"action must be an integer in [0, {self.action_space.n}), got {action!r}"
                 )
-            self._action_slot[0] = index
-            return
+            return index
         values = np.asarray(action, np.float32)
         if values.shape != self.action_space.shape or not np.all(np.isfinite(values)):
             raise ValueError(
                 f"action must be a finite float array of shape {self.action_space.shape}, "
                 f"got {action!r}"
             )
-        self._action_slot[:] = values.ravel().view(np.uint32)
+        return values
+
+    def _write_action(self, action: Any) -> None:
+        """Validate ``action`` and write its bits into the input vector's action slot."""
+        checked = self._checked_action(action)
+        if self._discrete:
+            self._action_slot[0] = checked
+        else:
+            self._action_slot[:] = checked.ravel().view(np.uint32)
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
         self._write_action(action)
@@ -235,6 +243,86 @@ class JaxBackend:
 
     def close(self) -> None:
         """Nothing to release: the compiled functions are freed with the object."""
+
+
+def steps_on_host(env: Env) -> bool:
+    """Whether ``env`` offers the scalar host path (``host_transition`` and ``host_observe``) and its
+    appended context values stay constant through an episode (no observation noise)."""
+    offers = callable(getattr(env, "host_transition", None)) and callable(
+        getattr(env, "host_observe", None)
+    )
+    return offers and env.obs_context.noise == 0
+
+
+class ScalarBackend(JaxBackend):
+    """A JAX ``Env`` whose episodes start in the compiled program and then step on the host.
+
+    A compiled call costs about 15 µs on a CPU whatever it computes; the same physics on Python floats
+    (the env's ``host_transition``, written once against an array namespace together with its JAX
+    ``transition``, see ``contextrl.core.scalar``) costs a few. Episodes start through the compiled start
+    program, so contexts and start states are exactly the JAX backend's; each step then runs in Python and
+    rounds the state and reward to float32, as the JAX path holds them. The host computes in double
+    precision, so trajectories agree with the JAX backend's to float32 rounding, not bit for bit. A
+    transition's own randomness (Acrobot's torque noise) comes from the episode's NumPy Generator.
+    """
+
+    def __init__(self, env: Env, schedule: ContextSchedule):
+        super().__init__(env, schedule)
+        self._physics_words = self._physics_slice()
+        self._host_transition = env.host_transition
+        self._host_observe = env.host_observe
+        self._max_steps = env.max_steps
+        self._state: list[float] = []
+        self._time = 0
+        self._context: types.SimpleNamespace | None = None
+        self._extra: list[float] = []  # the appended context values, constant through an episode
+        self._rng: np.random.Generator | None = None
+
+    def _physics_slice(self) -> slice:
+        """Where the physics state (one float32 array) lies in the packed start carry.
+
+        Read straight from the carry: unpacking the whole pytree at every start would cost as much as
+        several steps.
+        """
+        packer = self.packer
+        leaf_ids = jax.tree_util.tree_unflatten(packer.treedef, range(len(packer.sizes)))
+        leaf = leaf_ids[0].physics
+        if not isinstance(leaf, int) or packer.dtypes[leaf] != np.float32:
+            raise TypeError(
+                f"{self.env.name}'s host path needs its physics state to be one float32 array"
+            )
+        start = sum(packer.sizes[:leaf])
+        return slice(start, start + packer.sizes[leaf])
+
+    def start(
+        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        obs, context_vector, index = super().start(key_bits, episode, rng, context)
+        self._state = self.carry[self._physics_words].view(np.float32).tolist()
+        self._time = 0
+        self._context = types.SimpleNamespace(
+            **dict(zip(self.space.names, context_vector.tolist(), strict=True))
+        )
+        self._extra = obs[self.base_size :].tolist()
+        self._rng = rng
+        return obs, context_vector, index
+
+    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
+        checked = self._checked_action(action)
+        action = checked if self._discrete else checked.ravel().tolist()
+        state, reward, terminated = self._host_transition(
+            self._state, action, self._context, self._rng
+        )
+        rounded = np.array([*state, reward], np.float32).tolist()
+        self._state = rounded[:-1]
+        self._time += 1
+        base = self._host_observe(self._state, self._context)
+        obs = np.array([*base, *self._extra], np.float32)
+        return obs, rounded[-1], bool(terminated), self._time >= self._max_steps
+
+    def physics_and_context(self) -> tuple[Any, Any]:
+        _, _, context = self.packer.unpack_host(self.carry)
+        return np.asarray(self._state, np.float32), context
 
 
 class HostBackend:

@@ -22,7 +22,7 @@ from contextrl.context.features import ContextBase, ContextError
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import spec
-from contextrl.gymnasium.backends import HostBackend, JaxBackend
+from contextrl.gymnasium.backends import HostBackend, JaxBackend, ScalarBackend, steps_on_host
 from contextrl.gymnasium.schedule import ContextSchedule, resolve_contexts
 
 RENDER_MODES = ("rgb_array",)
@@ -126,7 +126,8 @@ class ContextualGymEnv(gymnasium.Env):
             )
         if isinstance(inner, Env):
             inner = dataclasses.replace(inner, obs_context=obs_context)
-            self.backend = JaxBackend(inner, self.schedule)
+            backend = ScalarBackend if steps_on_host(inner) else JaxBackend
+            self.backend = backend(inner, self.schedule)
             self.max_steps = inner.max_steps
         else:
             self.max_steps = inner.default_max_steps if max_steps is None else int(max_steps)
