@@ -1,6 +1,7 @@
 """How the single gymnasium environment steps: a compiled JAX environment or a host simulator.
 
-Both backends answer the same three calls (``start`` an episode under a chosen context, ``advance`` one
+A JAX environment that also offers scalar physics (``contextrl.core.scalar``) steps on the host between
+compiled starts. Every backend answers the same three calls (``start`` an episode under a chosen context, ``advance`` one
 action, draw a ``frame``), so the adapter above them owns everything else once: context sets and
 selectors, observation modes, seeding and gymnasium's API.
 """
@@ -263,7 +264,8 @@ class ScalarBackend(JaxBackend):
     program, so contexts and start states are exactly the JAX backend's; each step then runs in Python and
     rounds the state and reward to float32, as the JAX path holds them. The host computes in double
     precision, so trajectories agree with the JAX backend's to float32 rounding, not bit for bit. A
-    transition's own randomness (Acrobot's torque noise) comes from the episode's NumPy Generator.
+    transition's own randomness (Acrobot's torque noise) comes from the NumPy Generator ``start`` is
+    given (the gymnasium env's ``np_random``, seeded by ``reset(seed=...)``), not from JAX keys.
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
