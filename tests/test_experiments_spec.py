@@ -1,5 +1,7 @@
 """Specs are refused before anything runs; plans expand deterministically into the right contexts."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -151,3 +153,19 @@ def test_host_environment_is_refused():
         pytest.skip("no host environment registered (dm_control not installed)")
     with pytest.raises(SpecError, match="host environment"):
         prepare({"protocol": "visibility", "env": host[0]})
+
+
+def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):
+    from contextrl.experiments.trials import xla_cpu_workaround
+
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    xla_cpu_workaround()
+    xla_cpu_workaround()
+    flags = os.environ["XLA_FLAGS"].split()
+    assert flags == [
+        "--xla_force_host_platform_device_count=2",
+        "--xla_cpu_enable_concurrency_optimized_scheduler=false",
+    ]
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_concurrency_optimized_scheduler=true")
+    xla_cpu_workaround()
+    assert os.environ["XLA_FLAGS"].endswith("scheduler=true")
