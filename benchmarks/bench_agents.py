@@ -76,7 +76,10 @@ def main() -> None:
     args = parser.parse_args()
 
     print(f"device: {jax.devices()[0].device_kind}, {jax.device_count()} device(s)")
-    rows = [run(name, args.seeds, args.scale, args.config) for name in args.only]
+    rows = []
+    for name in args.only:
+        rows.append(run(name, args.seeds, args.scale, args.config))
+        print(f"done: {rows[-1]}", flush=True)
     header = list(rows[0])
     widths = [
         max(len(h), *(len(f"{r[h]:,.1f}" if isinstance(r[h], float) else r[h]) for r in rows))
