@@ -156,7 +156,7 @@ def test_host_environment_is_refused():
 
 
 def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):
-    from contextrl.experiments.trials import xla_cpu_workaround
+    from contextrl.xla_flags import xla_cpu_workaround
 
     monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
     xla_cpu_workaround()

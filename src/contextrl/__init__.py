@@ -1,10 +1,14 @@
 """contextrl: contextual reinforcement learning with explicit, named, bounded contexts.
 
-    import jax, contextrl as crl
-    env = crl.make("CartPole")
-    contexts = crl.sample(env, {"length": crl.Uniform(0.25, 0.75)}, n=4096, key=jax.random.key(0))
-    state, ts = jax.vmap(env.reset)(keys, contexts)
+import jax, contextrl as crl
+env = crl.make("CartPole")
+contexts = crl.sample(env, {"length": crl.Uniform(0.25, 0.75)}, n=4096, key=jax.random.key(0))
+state, ts = jax.vmap(env.reset)(keys, contexts)
 """
+
+from contextrl.xla_flags import xla_cpu_workaround
+
+xla_cpu_workaround()  # before anything starts JAX's CPU backend
 
 from contextrl import envs as _envs  # noqa: F401  (registers the environments)
 from contextrl.context import (

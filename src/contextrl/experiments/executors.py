@@ -17,7 +17,7 @@ from collections.abc import Callable
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec, spec_to_dict
-from contextrl.experiments.trials import run_chunk, xla_cpu_workaround
+from contextrl.experiments.trials import run_chunk
 
 EXECUTORS = ("local", "ray")
 
@@ -100,7 +100,6 @@ def run_local(
 
 def _remote_chunk(spec_data: dict, chunk: int):
     """What a Ray worker runs: rebuild the plan from the spec, run one chunk."""
-    xla_cpu_workaround()
     plan = expand(parse_spec(spec_data))
     return run_chunk(plan, plan.chunks[chunk])
 

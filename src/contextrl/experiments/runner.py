@@ -13,12 +13,11 @@ from contextrl.experiments.executors import EXECUTORS, Summary, run_local, run_r
 from contextrl.experiments.protocols import expand
 from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
-from contextrl.experiments.trials import check_agent, xla_cpu_workaround
+from contextrl.experiments.trials import check_agent
 
 
 def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
     """A fully validated spec (fields, environment, features, agent options); nothing runs."""
-    xla_cpu_workaround()
     spec = spec if isinstance(spec, CommonSpec) else parse_spec(spec)
     if spec.protocol != "tabular":
         check_agent(spec)

@@ -8,7 +8,6 @@ it can run in this process or on a Ray worker.
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from typing import Any
 
@@ -18,19 +17,6 @@ import pandas as pd
 
 from contextrl.experiments.protocols import Plan, stack_sets, trial_key
 from contextrl.experiments.spec import SpecError
-
-
-def xla_cpu_workaround() -> None:
-    """Turn off XLA:CPU's concurrency-optimised scheduler unless XLA_FLAGS already decides.
-
-    With it, large vmapped training programs (e.g. 128 PPO agents in one call, jaxlib 0.10) can wedge
-    forever: every pool thread idle, the executable never completing. Takes effect only if called before
-    JAX creates its CPU backend, which is why the experiment entry points call it first.
-    """
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_enable_concurrency_optimized_scheduler" not in flags:
-        option = "--xla_cpu_enable_concurrency_optimized_scheduler=false"
-        os.environ["XLA_FLAGS"] = f"{flags} {option}".strip()
 
 
 @dataclasses.dataclass
