@@ -93,3 +93,9 @@ def test_gymnasium_check_env_passes_with_resampled_visible_contexts(name):
     )
     check_env(env.unwrapped, skip_render_check=False)
     env.close()
+
+
+def test_render_fps_is_one_frame_per_control_step():
+    env = gymnasium.make("contextrl/DmcWalker-v0")
+    assert env.metadata["render_fps"] == 40  # walker acts every 25 ms, whatever its physics step
+    env.close()

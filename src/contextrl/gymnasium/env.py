@@ -54,7 +54,11 @@ def check_max_steps(max_steps: Any) -> None:
 
 
 def render_fps(env: Env | HostEnv) -> int:
-    """Frames per second of real time, from the default context's time step where there is one."""
+    """Frames per second of real time: one frame per action (a host env's control step, else the
+    default context's time step where there is one)."""
+    control_timestep = getattr(env, "control_timestep", None)
+    if control_timestep:
+        return max(1, round(1.0 / control_timestep))
     default = env.default_context()
     for name in ("tau", "dt", "timestep"):
         if name in env.context_space.names:
