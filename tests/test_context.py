@@ -362,3 +362,12 @@ def test_demo_controller_return_depends_on_the_pole_length(cartpole):
         jax.jit(episode_returns, static_argnums=0)(cartpole, contexts, jax.random.key(0))
     )
     assert returns[:16].mean() < 200 and returns[16:].mean() == 500.0
+
+
+def test_a_context_at_its_bounds_passes_validation_again(cartpole):
+    """Bounds like 0.2 are not exact in float32; a stored bound value must still be valid."""
+    edge = cartpole.context(tau=0.2, masspole=0.01, initial_state_upper=0.2)
+    cartpole.context_space.check(edge)
+    FromSet(cartpole.context_space.stack([edge]))
+    with pytest.raises(ContextError, match=r"tau: value 0.2001 is outside its bounds \[0.002, 0.2\]"):
+        cartpole.context(tau=0.2001)

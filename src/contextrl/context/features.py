@@ -79,13 +79,16 @@ class Feature:
             raise ContextError(f"{self.name}: value {value!r} is not finite (NaN or inf)")
         if self.kind != "float" and not np.all(np.equal(np.round(array), array)):
             raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
-        low, high = np.min(array), np.max(array)
-        if low < self.lower or high > self.upper:
-            bad = low if low < self.lower else high
+        # Compared at the precision a context holds, so a stored bound value passes a second check.
+        stored = array.astype(np.float32 if self.kind == "float" else np.int32)
+        lower, upper = np.asarray([self.lower, self.upper]).astype(stored.dtype)
+        low, high = np.min(stored), np.max(stored)
+        if low < lower or high > upper:
+            bad = np.min(array) if low < lower else np.max(array)
             raise ContextError(
                 f"{self.name}: value {bad:g} is outside its bounds [{self.lower:g}, {self.upper:g}]"
             )
-        return array.astype(np.float32 if self.kind == "float" else np.int32)
+        return stored
 
 
 def feature(
