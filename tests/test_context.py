@@ -369,5 +369,7 @@ def test_a_context_at_its_bounds_passes_validation_again(cartpole):
     edge = cartpole.context(tau=0.2, masspole=0.01, initial_state_upper=0.2)
     cartpole.context_space.check(edge)
     FromSet(cartpole.context_space.stack([edge]))
-    with pytest.raises(ContextError, match=r"tau: value 0.2001 is outside its bounds \[0.002, 0.2\]"):
+    with pytest.raises(
+        ContextError, match=r"tau: value 0.2001 is outside its bounds \[0.002, 0.2\]"
+    ):
         cartpole.context(tau=0.2001)
