@@ -1,0 +1,5 @@
+"""Box2D family: LunarLander, BipedalWalker and VehicleRacing as host environments.
+
+Every context value is held by the environment instance: no module global of gymnasium's Box2D modules is
+read or written, so two instances with different contexts in one process stay isolated.
+"""
