@@ -174,13 +174,15 @@ class SyntheticTargets:
         )
 
 
-def _read_lines(name: str, data_dir: Path | None) -> list[str]:
-    """The lines of a data file: from ``data_dir`` when it has one of that name, else the shipped one."""
-    if data_dir is not None and (data_dir / name).is_file():
-        text = (data_dir / name).read_text()
+def _read_lines(name: str, folder: Path | None) -> list[str] | None:
+    """The lines of a data file in ``folder`` (None: the shipped data), or None if it has none."""
+    if folder is None:
+        path = importlib.resources.files("contextrl.envs.rna").joinpath("data", name)
     else:
-        text = importlib.resources.files("contextrl.envs.rna").joinpath("data", name).read_text()
-    return [line.strip() for line in text.splitlines()]
+        path = folder / name
+    if not path.is_file():
+        return None
+    return [line.strip() for line in path.read_text().splitlines()]
 
 
 def _solution(line: str, target: str, where: str) -> str | None:
@@ -203,28 +205,31 @@ class TargetSets:
     ):
         self.data_dir = None if data_dir is None else Path(data_dir)
         if self.data_dir is not None:
-            known = sorted(
-                {*STRUCTURE_FILES.values(), *NAME_FILES.values(), *SOLUTION_FILES.values()}
-            )
+            known = sorted(STRUCTURE_FILES.values())
             if not self.data_dir.is_dir():
                 raise TargetError(f"data_dir {str(self.data_dir)!r} is not a directory")
             if not any((self.data_dir / name).is_file() for name in known):
                 raise TargetError(
-                    f"data_dir {str(self.data_dir)!r} holds none of the data files {known}"
+                    f"data_dir {str(self.data_dir)!r} holds none of the target files {known}"
                 )
         self.synthetic = SyntheticTargets() if synthetic is None else synthetic
         self._files = {name: self._load(name) for name in STRUCTURE_FILES}
         self._generated: dict[int, Target] = {}
 
     def _load(self, dataset: str) -> list[Target]:
-        structures = _read_lines(STRUCTURE_FILES[dataset], self.data_dir)
+        """A data set's targets, with names and solutions from the same folder (where it has them)."""
+        folder = self.data_dir
+        structures = _read_lines(STRUCTURE_FILES[dataset], folder)
+        if structures is None:  # not in data_dir: the shipped data set, whole
+            folder = None
+            structures = _read_lines(STRUCTURE_FILES[dataset], folder)
         if len(structures) > MAX_TARGETS:
             raise TargetError(
                 f"{dataset}: {len(structures)} targets; a data set holds at most {MAX_TARGETS}"
             )
-        names = _read_lines(NAME_FILES[dataset], self.data_dir) if dataset in NAME_FILES else []
+        names = _read_lines(NAME_FILES[dataset], folder) if dataset in NAME_FILES else None
         solutions = (
-            _read_lines(SOLUTION_FILES[dataset], self.data_dir) if dataset in SOLUTION_FILES else []
+            _read_lines(SOLUTION_FILES[dataset], folder) if dataset in SOLUTION_FILES else None
         )
         for kind, lines in (("names", names), ("solutions", solutions)):
             if lines and len(lines) != len(structures):
