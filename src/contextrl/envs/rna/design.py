@@ -17,6 +17,7 @@ train/test splits, and a set of single-id contexts (first = last) any list of id
 
 from __future__ import annotations
 
+import operator
 from pathlib import Path
 from typing import Any
 
@@ -208,13 +209,13 @@ class RnaDesign(HostEnv):
     def step_physics(self, action) -> tuple[np.ndarray, float, bool]:
         if self.target is None or self._result is not None:
             raise RuntimeError(f"{self.name}: the episode is over (or never began); reset first")
-        if isinstance(action, (bool, np.bool_)) or not np.issubdtype(
-            np.asarray(action).dtype, np.integer
-        ):
+        try:
+            index = -1 if isinstance(action, (bool, np.bool_)) else operator.index(action)
+        except TypeError:
+            index = -1
+        if not 0 <= index < len(ACTION_PAIRS):
             raise ValueError(f"{self.name}: action must be an integer in [0, 6), got {action!r}")
-        action = int(action)
-        if not 0 <= action < len(ACTION_PAIRS):
-            raise ValueError(f"{self.name}: action must be an integer in [0, 6), got {action!r}")
+        action = index
         site = int(self._decision_sites[self._step])
         pair = ACTION_PAIRS[action]
         self._sequence[site] = pair[0]
