@@ -376,7 +376,12 @@ def test_the_train_test_example_spec_is_valid_for_rna_design():
     from contextrl.context.distributions import check_spec, sample
     from contextrl.experiments.spec import SPECS, parse_distribution
 
-    path = Path(__file__).parent.parent / "examples" / "rna_train_synthetic_test_eterna.yaml"
+    path = (
+        Path(__file__).parent.parent
+        / "examples"
+        / "rna"
+        / "visibility_rna_synthetic_to_eterna.yaml"
+    )
     data = yaml.safe_load(path.read_text())
     spec = SPECS[data["protocol"]](**data)  # every field known to the protocol
     assert spec.env == "RnaDesign" and contextrl.spec(spec.env).host
