@@ -397,3 +397,15 @@ def test_the_train_test_example_spec_is_valid_for_rna_design():
             {space.features["dataset"].choices[d] for d in np.asarray(contexts.dataset)}
         )
     assert datasets == [{"synthetic"}, {"eterna100_v2", "rfam_taneda"}]
+
+
+def test_targets_come_from_the_seed_given_to_reset():
+    env = gymnasium.make("contextrl/RnaDesign-v0", contexts={"dataset": "rfam_taneda"})
+
+    def drawn(seed: int) -> list[int]:
+        ids = [env.reset(seed=seed)[1]["target_id"]]
+        return ids + [env.reset()[1]["target_id"] for _ in range(7)]
+
+    first = drawn(5)
+    assert drawn(5) == first and drawn(6) != first and len(set(first)) > 3
+    env.close()

@@ -145,6 +145,7 @@ class RnaDesign(HostEnv):
         )
         self._offsets = np.arange(-MAX_RADIUS, MAX_RADIUS + 1)
         self.target: Target | None = None
+        self._rng: np.random.Generator | None = None
         self._result: dict[str, Any] | None = None
 
     # ---- HostEnv interface -------------------------------------------------------------------------
@@ -180,12 +181,12 @@ class RnaDesign(HostEnv):
         dataset, first, last = self.target_range(values)  # every check before anything changes
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"{self.name}: rng must be a numpy.random.Generator, got {rng!r}")
-        self.start(self.targets.get(dataset, int(rng.integers(first, last + 1))), values, rng)
+        self._begin(self.targets.get(dataset, int(rng.integers(first, last + 1))), values, rng)
         return self._observe()
 
-    def start(self, target: Target, values: dict[str, float], rng: np.random.Generator) -> None:
-        """Begin designing ``target`` under checked context ``values`` (what ``reset_physics`` does
-        after drawing the target)."""
+    def _begin(self, target: Target, values: dict[str, float], rng: np.random.Generator) -> None:
+        """Start designing ``target`` under checked context ``values``; precompute its observations'
+        one-hot rows, padded with ``outside`` rows on both sides (one extra past the end)."""
         self.target = target
         self._rng = rng
         self._threshold = values["mutation_threshold"]
@@ -195,9 +196,7 @@ class RnaDesign(HostEnv):
         sites = np.arange(n)
         self._decision_sites = np.flatnonzero((partners < 0) | (partners > sites))
         channel = np.where(partners < 0, 0, np.where(partners > sites, 1, 2))
-        self._padded = np.zeros(
-            (n + WINDOW, len(CHANNELS)), np.float32
-        )  # one extra site past the end
+        self._padded = np.zeros((n + WINDOW, len(CHANNELS)), np.float32)
         self._padded[:, 3] = 1.0
         self._padded[MAX_RADIUS + sites, 3] = 0.0
         self._padded[MAX_RADIUS + sites, channel] = 1.0
@@ -262,16 +261,15 @@ class RnaDesign(HostEnv):
             actions.append(ACTION_PAIRS.index(pair))
         return actions
 
-    def _distance(self, structure: str) -> int:
-        return int(
-            np.count_nonzero(np.frombuffer(structure.encode(), np.uint8) != self._target_bytes)
-        )
+    def _mismatches(self, structure: str) -> np.ndarray:
+        """Sites where ``structure`` differs from the target (their count: the Hamming distance)."""
+        return np.flatnonzero(np.frombuffer(structure.encode(), np.uint8) != self._target_bytes)
 
     def _finish(self) -> float:
         """Fold the finished design, improve it locally if it is close, and score it."""
         sequence = "".join(self._sequence)
         structure = fold(sequence)
-        distance, folds = self._distance(structure), 1
+        distance, folds = len(self._mismatches(structure)), 1
         if 0 < distance <= self._threshold:
             sequence, structure, distance, extra = self._improve(sequence, structure, distance)
             folds += extra
@@ -289,9 +287,7 @@ class RnaDesign(HostEnv):
         best, partners = list(sequence), self.target.partners
         folds = 0
         while folds < self.improvement_folds and distance > 0:
-            wrong = np.flatnonzero(
-                np.frombuffer(structure.encode(), np.uint8) != self._target_bytes
-            )
+            wrong = self._mismatches(structure)
             site = int(wrong[self._rng.integers(len(wrong))])
             candidate = best.copy()
             partner = int(partners[site])
@@ -305,10 +301,8 @@ class RnaDesign(HostEnv):
                 candidate[site] = bases[self._rng.integers(len(bases))]
             candidate_structure = fold("".join(candidate))
             folds += 1
-            candidate_distance = self._distance(candidate_structure)
-            if (
-                candidate_distance <= distance
-            ):  # ties accepted: the search may drift across plateaus
+            candidate_distance = len(self._mismatches(candidate_structure))
+            if candidate_distance <= distance:  # ties kept: the search drifts across plateaus
                 best, structure, distance = candidate, candidate_structure, candidate_distance
         return "".join(best), structure, distance, folds
 
