@@ -409,3 +409,17 @@ def test_targets_come_from_the_seed_given_to_reset():
     first = drawn(5)
     assert drawn(5) == first and drawn(6) != first and len(set(first)) > 3
     env.close()
+
+
+def test_a_context_set_over_id_ranges_is_a_train_test_split():
+    env = gymnasium.make(
+        "contextrl/RnaDesign-v0",
+        contexts={"train": {"target_id_last": 80}, "test": {"target_id_first": 81}},
+    )
+    seen = {"train": set(), "test": set()}
+    env.reset(seed=0)
+    for _ in range(60):  # round robin: train, test, train, ...
+        _, info = env.reset()
+        seen[info["context_id"]].add(info["target_id"])
+    assert max(seen["train"]) <= 80 < min(seen["test"]) and len(seen["test"]) > 10
+    env.close()
