@@ -61,7 +61,7 @@ class HostEnv:
             value = float(value)
             if not math.isfinite(value):
                 raise ContextError(f"{name}: value {value!r} is not finite (NaN or inf)")
-            lower, upper = np.float32(feature.lower), np.float32(feature.upper)
+            lower, upper = float(np.float32(feature.lower)), float(np.float32(feature.upper))
             if not lower <= value <= upper:  # compared as float32, the precision a context holds
                 raise ContextError(
                     f"{name}: value {value:g} is outside its bounds "
