@@ -13,7 +13,7 @@ from contextrl.experiments import (
     run_experiment,
     spec_to_dict,
 )
-from contextrl.experiments.protocols import REGIONS, region_of, train_test_contexts
+from contextrl.experiments.train_test import REGIONS, region_of, train_test_contexts
 
 BAD_SPECS = [
     ({"protocol": "nope"}, "unknown protocol 'nope'"),

@@ -144,15 +144,14 @@ class SACConfig:
         return max(remaining, 0) // per_row
 
 
+# The paper's SAC environments (appendix table); all three share one setting.
+PAPER_SAC = {"Pendulum": {}, "DmcWalker": {}, "DmcQuadruped": {}}
+
+
 def paper_config(env_name: str, **overrides: Any) -> SACConfig:
     """The paper's SAC settings (appendix table) for Pendulum, DmcWalker or DmcQuadruped."""
-    settings = {
-        "Pendulum": {},
-        "DmcWalker": {},
-        "DmcQuadruped": {},
-    }
-    if env_name not in settings:
-        raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(settings)}")
+    if env_name not in PAPER_SAC:
+        raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(PAPER_SAC)}")
     base = dict(
         n_step=5,
         gamma=0.9,
@@ -167,7 +166,7 @@ def paper_config(env_name: str, **overrides: Any) -> SACConfig:
         buffer_size=100_000,
         hidden_sizes=(256, 256),
     )
-    return SACConfig(**{**base, **settings[env_name], **overrides})
+    return SACConfig(**{**base, **PAPER_SAC[env_name], **overrides})
 
 
 @dataclasses.dataclass(frozen=True)

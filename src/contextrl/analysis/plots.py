@@ -139,8 +139,18 @@ def heatmap(
     vmin: float | None = None,
     vmax: float | None = None,
 ):
-    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red."""
+    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red.
+
+    ``vmin``/``vmax`` fix the colour scale (to share it between panels); by default it spans the
+    values, whatever their sign. Equal limits are widened by ½ so a constant plane still has a scale.
+    """
     x, y, values = (np.asarray(a, dtype=float).ravel() for a in (x, y, values))
+    vmin = float(np.nanmin(values)) if vmin is None else float(vmin)
+    vmax = float(np.nanmax(values)) if vmax is None else float(vmax)
+    if not vmin <= vmax:
+        raise ValueError(f"heatmap: vmin ({vmin:g}) must not exceed vmax ({vmax:g})")
+    if vmin == vmax:
+        vmin, vmax = vmin - 0.5, vmax + 0.5
     xedges = np.linspace(x.min(), x.max(), bins + 1)
     yedges = np.linspace(y.min(), y.max(), bins + 1)
     total, _, _ = np.histogram2d(x, y, bins=(xedges, yedges), weights=values)
