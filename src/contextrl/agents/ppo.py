@@ -505,11 +505,18 @@ def _train_host(config: PPOConfig, envs, train_contexts, key, seed: int) -> Trai
         last_value = value_of(params, obs, context_vector)
         params, opt_state, key, losses = learn(params, opt_state, stacked, last_value, key)
         ended = episodes[finished_before:]
+        # no episode ended in this update: repeat the last value (the running episodes' so far at first)
+        if ended:
+            curve = (np.mean([e[0] for e in ended]), np.mean([e[1] for e in ended]))
+        elif rows:
+            curve = (rows[-1]["episode_return"], rows[-1]["episode_length"])
+        else:
+            curve = (float(running_return.mean()), float(running_length.mean()))
         rows.append(
             {
                 "step": step,
-                "episode_return": np.mean([e[0] for e in ended]) if ended else np.nan,
-                "episode_length": np.mean([e[1] for e in ended]) if ended else np.nan,
+                "episode_return": curve[0],
+                "episode_length": curve[1],
                 "episodes_finished": len(ended),
                 "actor_loss": float(losses[0].mean()),
                 "value_loss": float(losses[1].mean()),

@@ -25,13 +25,15 @@ TRAIN_EVAL_CONTEXTS = 16
 @dataclasses.dataclass
 class ChunkResult:
     """Evaluation rows (one per trial × test context), training-curve rows, per-trial returns on the
-    training contexts (trained and random policy) and trained parameters."""
+    training contexts (trained and random policy), trained parameters, and what a checkpoint needs to
+    rebuild the policy (config, training contexts, agent and environment names)."""
 
     evaluations: pd.DataFrame
     curves: pd.DataFrame
     params: list[Any]
     seconds: float
     training: pd.DataFrame = dataclasses.field(default_factory=pd.DataFrame)
+    checkpoint: dict = dataclasses.field(default_factory=dict)
 
 
 _COMPILED: dict[tuple, Any] = {}
@@ -168,6 +170,18 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
             "random_return": own[:, 1].astype(np.float64),
         }
     )
+    checkpoint = {
+        "config": spec.agent_config(trials[0].variant),
+        "train_contexts": template,
+        "agent": spec.agent,
+        "env": spec.env,
+        "max_steps": spec.max_steps,
+    }
     return ChunkResult(
-        pd.concat(eval_frames, ignore_index=True), curves_frame, params, seconds, training
+        pd.concat(eval_frames, ignore_index=True),
+        curves_frame,
+        params,
+        seconds,
+        training,
+        checkpoint,
     )
