@@ -17,9 +17,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import gymnasium
+import jax
 import numpy as np
 
-from contextrl.agents.networks import context_input
+from contextrl.agents.networks import ContextInput, context_input
 from contextrl.context.distributions import DISTRIBUTIONS
 from contextrl.gymnasium.registration import gym_id
 
@@ -54,8 +55,11 @@ class HostCollector:
         selector: str = "random",
         seed: int = 0,
         vectorization: str = "sync",
+        context: ContextInput | None = None,
         **env_kwargs: Any,
     ):
+        """``context`` fixes the agent's context input (an agent trained on other contexts sees
+        the features it was trained with); by default it follows ``context_obs`` and ``contexts``."""
         resampled = isinstance(contexts, Mapping) and any(
             isinstance(v, DISTRIBUTIONS) for v in contexts.values()
         )
@@ -72,7 +76,9 @@ class HostCollector:
         self.space = (
             getattr(self.envs, "context_space", None) or self.envs.get_attr("context_space")[0]
         )
-        self.context_input = context = context_input(context_obs, self.space, contexts)
+        if context is None:
+            context = context_input(context_obs, self.space, contexts)
+        self.context_input = context
         self._lower = np.asarray(context.lower, np.float32)
         self._span = np.maximum(np.asarray(context.upper, np.float32) - self._lower, 1e-8)
         self._names = [self.space.names[i] for i in context.indices]
@@ -151,6 +157,21 @@ class HostCollector:
             "step": np.asarray([e[3] for e in recent], np.int32),
             "total": len(self._episodes),
         }
+
+    def evaluate(self, act, params, episodes: int, key) -> np.ndarray:
+        """Mean undiscounted return of each copy's first ``episodes`` episodes under
+        ``act(params, obs, context_input, key) -> env actions`` (copies that are done keep stepping
+        until the last one finishes; their later episodes are not counted)."""
+        returns = [[] for _ in range(self.num_envs)]
+        running = np.zeros(self.num_envs)
+        while min(len(r) for r in returns) < episodes:
+            key, action_key = jax.random.split(key)
+            step = self.step(np.asarray(act(params, self.obs, self.context, action_key)))
+            running += step.reward
+            for i in np.flatnonzero(step.done):
+                returns[i].append(running[i])
+            running[step.done] = 0.0
+        return np.asarray([np.mean(r[:episodes]) for r in returns])
 
     def close(self) -> None:
         self.envs.close()

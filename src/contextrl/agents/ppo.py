@@ -409,23 +409,44 @@ def train_gymnasium(
         return _train_host(config, collector, key)
 
 
-def _train_host(config: PPOConfig, collector, key) -> TrainResult:
-    action_space = collector.single_action_space
+def _host_networks(config: PPOConfig, action_space, obs_space, context) -> _Networks:
+    """Actor and critic for gymnasium spaces (the host path)."""
     if hasattr(action_space, "n"):
         discrete, action_size, low, high = True, int(action_space.n), None, None
     else:
         discrete, action_size = False, int(action_space.shape[0])
         low, high = action_space.low, action_space.high
-    obs_size = int(np.prod(collector.single_observation_space.shape))
-    context = collector.context_input
+    obs_size = int(np.prod(obs_space.shape))
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
-    nets = _Networks(
+    return _Networks(
         ConditionedMLP(obs_size, action_size, out_scale=0.01, **common),
         ConditionedMLP(obs_size, 1, out_scale=1.0, **common),
         context,
         discrete,
         low,
         high,
+    )
+
+
+def make_host_policy(config: PPOConfig, action_space, obs_space, context) -> Callable:
+    """``act(params, obs, context_input, key) -> env actions`` for a batch of host observations
+    (the most likely action or the Gaussian mean); ``context`` is the training ContextInput."""
+    nets = _host_networks(config, action_space, obs_space, context)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        head, _ = _policy_outputs(nets, params, obs, context_vector)
+        return _env_action(nets, jnp.argmax(head, axis=-1) if nets.discrete else head)
+
+    return act
+
+
+def _train_host(config: PPOConfig, collector, key) -> TrainResult:
+    nets = _host_networks(
+        config,
+        collector.single_action_space,
+        collector.single_observation_space,
+        collector.context_input,
     )
     optimizer, value, learn = _learner(config, nets)
 

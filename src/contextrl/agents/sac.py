@@ -558,6 +558,19 @@ def _train_host(config: SACConfig, name: str, collector, key) -> TrainResult:
     return TrainResult(params, metrics)
 
 
+def make_host_policy(config: SACConfig, action_space, obs_space, context) -> Callable:
+    """``act(params, obs, context_input, key) -> env actions`` (tanh of the mean) for a batch of host
+    observations; ``context`` is the training ContextInput."""
+    nets = _build_networks(config, "the environment", action_space, obs_space, context)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
+        return nets.to_env(jnp.tanh(mean))
+
+    return act
+
+
 def make_policy(
     config: SACConfig, env, train_contexts: Any, deterministic: bool = True
 ) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
