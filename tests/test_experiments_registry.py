@@ -70,3 +70,25 @@ def test_sac_runs_the_sensitivity_protocol_from_the_cli(tmp_path):
     spec = parse_spec({"protocol": "sensitivity", "env": "Pendulum", "agent": "sac"})
     # Pendulum is one of the paper's SAC environments: its setting is the base
     assert spec.agent_config("hidden") == sac.paper_config("Pendulum")
+
+
+def test_sac_on_a_host_environment_runs_the_papers_visibility_setting(tmp_path):
+    """`contextrl run visibility --env DmcWalker --agent sac --vary viscosity=...` at a tiny budget:
+    training and evaluation through the host collector."""
+    pytest.importorskip("dm_control")
+    out = tmp_path / "run"
+    argv = ["run", "visibility", "--env", "DmcWalker", "--agent", "sac"]
+    argv += ["--vary", "viscosity=uniform:0:1", "--variants", "concat_varying", "--seeds", "1"]
+    argv += ["--timesteps", "120", "--max-steps", "10", "--episodes", "1", "--quiet"]
+    argv += ["--set", "num_train_contexts=2", "--set", "num_test_contexts=3", "--out", str(out)]
+    for option in ("learning_starts=40", "batch_size=8", "log_every=40", "hidden_sizes=[8]"):
+        argv += ["--agent-option", option]
+    assert commands_main(argv) == 0
+    results = pd.read_parquet(out / "results" / "chunk-0000.parquet")
+    viscosity = results["ctx.viscosity"].to_numpy()
+    assert len(results) == 3 and ((viscosity >= 0) & (viscosity <= 1)).all()
+    assert results["return"].notna().all()
+    curves = pd.read_parquet(out / "curves" / "chunk-0000.parquet")
+    assert curves["step"].tolist() == [80, 120]  # 40 warm-up steps, then rows of 40
+    assert (out / "checkpoints" / "visibility-concat_varying-s0.npz").exists()
+    assert "Did the agents learn?" in (out / "report.html").read_text()

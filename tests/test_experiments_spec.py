@@ -151,7 +151,9 @@ def test_agent_without_a_host_loop_is_refused_on_a_host_environment():
     host = [i for i in crl.registered() if crl.spec(i).host]
     if not host:
         pytest.skip("no host environment registered (dm_control not installed)")
-    with pytest.raises(SpecError, match="dqn agent has no host training loop.*'ppo', 'random', 'sac'"):
+    with pytest.raises(
+        SpecError, match="dqn agent has no host training loop.*'ppo', 'random', 'sac'"
+    ):
         prepare({"protocol": "visibility", "env": host[0], "agent": "dqn"})
 
 
