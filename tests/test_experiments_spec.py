@@ -145,14 +145,16 @@ def test_example_specs_are_valid():
         assert spec.protocol in file.stem.replace("-", "_") or spec.protocol == "tabular"
 
 
-def test_host_environment_is_refused():
+def test_agent_without_a_host_loop_is_refused_on_a_host_environment():
     import contextrl as crl
 
     host = [i for i in crl.registered() if crl.spec(i).host]
     if not host:
         pytest.skip("no host environment registered (dm_control not installed)")
-    with pytest.raises(SpecError, match="host environment"):
-        prepare({"protocol": "visibility", "env": host[0]})
+    with pytest.raises(
+        SpecError, match="dqn agent has no host training loop.*'ppo', 'random', 'sac'"
+    ):
+        prepare({"protocol": "visibility", "env": host[0], "agent": "dqn"})
 
 
 def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):

@@ -9,6 +9,9 @@ An agent is a config dataclass (with ``validate()`` and a ``context_obs`` field)
 env, train_contexts) -> train(key, contexts)`` and ``make_policy(config, env, train_contexts) ->
 policy(params, obs, ctx, key)``. ``defaults(env_name)`` gives per-environment settings (the paper's)
 that the user's options override. An agent without ``make_train`` is not trained (the random baseline).
+For host environments (dm_control, Box2D…) an agent adds ``train_host(config, env_id, train_contexts,
+key, seed=..., **env_kwargs)`` on the shared host collector and ``make_host_policy(config,
+action_space, observation_space, context_input) -> act(params, obs, context_input, key)``.
 """
 
 from __future__ import annotations
@@ -17,9 +20,11 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
+import jax
+import numpy as np
+
 from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.networks import ConfigError
-from contextrl.core.spaces import Box, Discrete
 
 CONTEXT_OPTION = "context_obs"  # the config field that says how an agent sees the context
 
@@ -35,10 +40,18 @@ class Agent:
     defaults: Callable[[str], Mapping[str, Any]] = lambda env_name: {}
     actions: tuple[str, ...] = ("discrete", "continuous")
     doc: str = ""
+    train_host: Callable | None = None
+    make_host_policy: Callable | None = None
 
     @property
     def trained(self) -> bool:
         return self.make_train is not None
+
+    @property
+    def runs_on_host(self) -> bool:
+        return self.make_host_policy is not None and (
+            self.train_host is not None or not self.trained
+        )
 
     def option_names(self) -> list[str]:
         if self.config_type is None:
@@ -65,15 +78,19 @@ class Agent:
         config.validate()
         return config
 
-    def check_env(self, env) -> None:
+    def check_env(self, env, host: bool = False) -> None:
         """Refuse an environment whose action space this agent cannot act in."""
-        kind = "discrete" if isinstance(env.action_space, Discrete) else "continuous"
-        if kind not in self.actions or (
-            kind == "continuous" and not isinstance(env.action_space, Box)
-        ):
+        if host and not self.runs_on_host:
+            raise ConfigError(
+                f"the {self.name} agent has no host training loop, so it cannot train {env.name} "
+                f"(a host environment); agents that can: {host_agents()}"
+            )
+        space = env.action_space  # contextrl's or gymnasium's (host environments)
+        kind = "discrete" if hasattr(space, "n") else "continuous"
+        if kind not in self.actions or (kind == "continuous" and not hasattr(space, "low")):
             raise ConfigError(
                 f"the {self.name} agent acts in {' or '.join(self.actions)} action spaces; "
-                f"{env.name} has {env.action_space!r}"
+                f"{env.name} has {space!r}"
             )
 
 
@@ -84,6 +101,18 @@ def _random_policy(config, env, train_contexts) -> Callable:
         return env.action_space.sample(key)
 
     return policy
+
+
+def _random_host_policy(config, action_space, obs_space, context) -> Callable:
+    """Uniform random actions for a batch of host observations."""
+    if hasattr(action_space, "n"):
+        return lambda params, obs, context_input, key: jax.random.randint(
+            key, (len(obs),), 0, int(action_space.n)
+        )
+    low, high = np.asarray(action_space.low), np.asarray(action_space.high)
+    return lambda params, obs, context_input, key: jax.random.uniform(
+        key, (len(obs), *low.shape), minval=low, maxval=high
+    )
 
 
 def _c51_defaults(env_name: str) -> dict[str, Any]:
@@ -122,7 +151,22 @@ def registered_agents() -> list[str]:
     return sorted(_AGENTS)
 
 
-register_agent(Agent("ppo", ppo.PPOConfig, ppo.make_train, ppo.make_policy, doc="PPO (clipped)"))
+def host_agents() -> list[str]:
+    """Agents that can train (or act in) host environments."""
+    return sorted(name for name, agent in _AGENTS.items() if agent.runs_on_host)
+
+
+register_agent(
+    Agent(
+        "ppo",
+        ppo.PPOConfig,
+        ppo.make_train,
+        ppo.make_policy,
+        doc="PPO (clipped)",
+        train_host=ppo.train_gymnasium,
+        make_host_policy=ppo.make_host_policy,
+    )
+)
 register_agent(
     Agent("dqn", dqn.DQNConfig, dqn.make_train, dqn.make_policy, actions=("discrete",), doc="DQN")
 )
@@ -146,6 +190,17 @@ register_agent(
         defaults=_sac_defaults,
         actions=("continuous",),
         doc="SAC (the paper's settings where it has them)",
+        train_host=sac.train_gymnasium,
+        make_host_policy=sac.make_host_policy,
     )
 )
-register_agent(Agent("random", None, None, _random_policy, doc="uniform random actions"))
+register_agent(
+    Agent(
+        "random",
+        None,
+        None,
+        _random_policy,
+        doc="uniform random actions",
+        make_host_policy=_random_host_policy,
+    )
+)

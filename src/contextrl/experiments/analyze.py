@@ -376,7 +376,7 @@ def learning_section(spec: CommonSpec, training: pd.DataFrame) -> Section:
                 f"{spec.agent} agents ({variant}) do not clearly beat a random policy on their own "
                 f"training contexts (mean return {trained.mean():.4g} vs random "
                 f"{random.mean():.4g}); the results below describe agents that did not learn. "
-                "Train longer or tune the agent (contextrl run hpo)."
+                "Train longer or tune the agent's options."
             )
     text = [
         "Each trained agent is evaluated on (up to 16 of) its own training contexts, and a uniform "

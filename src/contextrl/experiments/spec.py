@@ -84,6 +84,9 @@ def load_yaml(text: str, source: str = "YAML") -> Any:
         raise SpecError(f"{source}: cannot read YAML ({error})") from None
 
 
+_HOST_ENVS: dict[str, Any] = {}
+
+
 def parse_distribution(feature: str, value: Any):
     """``{"uniform": [0.25, 0.75]}``, ``"uniform:0.25:0.75"``, a distribution object or a number."""
     if isinstance(value, tuple(DISTRIBUTION_NAMES.values())):
@@ -199,7 +202,7 @@ class CommonSpec:
         from contextrl.agents import ConfigError
 
         try:
-            agent.check_env(env)
+            agent.check_env(env, host=self.host)
             for variant in self.variants:
                 agent.config(self.env, self.agent_options, variant)
         except ConfigError as error:
@@ -218,20 +221,25 @@ class CommonSpec:
         """The agent's config for one visibility variant (None for an untrained agent)."""
         return self.agent_entry().config(self.env, self.agent_options, variant)
 
-    def make_env(self):
-        """The environment (hidden observation; agents add their own context input)."""
+    @property
+    def host(self) -> bool:
+        """Whether the environment is a host environment (trained through the host collector)."""
         import contextrl as crl
 
         try:
-            registered = crl.spec(self.env)
+            return crl.spec(self.env).host
         except KeyError as error:
             raise SpecError(f"env: {error.args[0]}") from None
-        if registered.host:
-            jax_envs = [i for i in crl.registered() if not crl.spec(i).host]
-            raise SpecError(
-                f"env: {self.env} is a host environment (stepped outside JAX); the agents here train "
-                f"JAX environments: choose one of {jax_envs}"
-            )
+
+    def make_env(self):
+        """The environment (hidden observation; agents add their own context input). A host
+        environment is built once per process and shared: specs only read its spaces."""
+        import contextrl as crl
+
+        if self.host:
+            if self.env not in _HOST_ENVS:
+                _HOST_ENVS[self.env] = crl.make(self.env)
+            return _HOST_ENVS[self.env]
         kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
         return crl.make(self.env, **kwargs)
 

@@ -101,6 +101,62 @@ def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_ba
     return np.asarray(returns), np.asarray(steps[0]), np.asarray(curves), per_trial, own
 
 
+def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
+    """The host path of a chunk: each trial trains on the shared host collector (the agent's
+    ``train_host``), then acts in host copies of its test and training contexts; same outputs as
+    :func:`_train_and_evaluate`."""
+    from contextrl.agents import get_agent
+    from contextrl.agents.host import HostCollector
+    from contextrl.agents.networks import ContextInput, context_input
+
+    spec = plan.spec
+    agent = spec.agent_entry()
+    variant = trials[0].variant
+    config = spec.agent_config(variant)
+    context = context_input(variant, env.context_space, template) if agent.trained else None
+    context = context or ContextInput()
+    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
+    act = agent.make_host_policy(config, *spaces, context)
+    random_act = get_agent("random").make_host_policy(None, *spaces, ContextInput())
+    limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
+
+    def evaluate(policy, params, contexts, key) -> np.ndarray:
+        seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
+        with HostCollector(
+            spec.env,
+            len(contexts),
+            contexts,
+            selector="round_robin",  # copy i runs context i
+            seed=seed,
+            context=context,
+            **limit,
+        ) as collector:
+            return collector.evaluate(policy, params, spec.eval_episodes, key)
+
+    returns, steps, curves, params, own = [], np.zeros(0), [], [], []
+    for trial, key in zip(trials, keys, strict=True):
+        train_key, eval_key, own_key = jax.random.split(key, 3)
+        train_set = plan.sets[trial.train_set].contexts
+        trial_params = None
+        if agent.trained:
+            seed = int(jax.random.randint(train_key, (), 0, 2**31 - 1))
+            result = agent.train_host(
+                config, spec.env, train_set, train_key, seed=seed, context=context, **limit
+            )
+            trial_params, steps = result.params, np.asarray(result.metrics["step"])
+            curves.append(np.asarray(result.metrics["episode_return"]))
+        returns.append(evaluate(act, trial_params, plan.sets[trial.test_set].contexts, eval_key))
+        mine = _first(train_set, TRAIN_EVAL_CONTEXTS)
+        own.append(
+            (
+                evaluate(act, trial_params, mine, own_key).mean(),
+                evaluate(random_act, None, mine, own_key).mean(),
+            )
+        )
+        params.append(trial_params)
+    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own)
+
+
 def _like(contexts, template):
     """A one-context set repeated to the template's size (a specialist seeing the template's features)."""
     if len(contexts) == len(template):
@@ -120,11 +176,16 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
     env = spec.make_env()
     template = plan.sets[trials[0].template].contexts
     keys = jax.numpy.stack([trial_key(spec.seed, t.id) for t in trials])
-    train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
-    test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
-    returns, steps, curves, params, own = _train_and_evaluate(
-        spec, trials[0].variant, env, template, keys, train_batch, test_batch
-    )
+    if spec.host:
+        returns, steps, curves, params, own = _host_train_and_evaluate(
+            plan, trials, env, template, keys
+        )
+    else:
+        train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
+        test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
+        returns, steps, curves, params, own = _train_and_evaluate(
+            spec, trials[0].variant, env, template, keys, train_batch, test_batch
+        )
     seconds = time.perf_counter() - start
     space = env.context_space
     eval_frames, curve_frames = [], []
