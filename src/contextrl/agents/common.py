@@ -40,8 +40,7 @@ def check_env(env: Any, agent: str) -> None:
                 f"{agent} training loop is compiled end to end for JAX environments; {host_path}"
             )
         raise ConfigError(
-            f"{agent} trains a contextrl environment from crl.make(...); got a "
-            f"{type(env).__name__}"
+            f"{agent} trains a contextrl environment from crl.make(...); got a {type(env).__name__}"
         )
     if not env.obs_context.hidden:
         raise ConfigError(

@@ -169,14 +169,16 @@ class _Interrupt:
     def __init__(self) -> None:
         self.run_path: Path | None = None
         self.on_exit: list = []
+        self.closed = threading.Event()
         # a thread started before this one may still take SIGINT: then the handler stops the same way
         self.previous = signal.signal(signal.SIGINT, lambda signum, frame: self.stop())
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         threading.Thread(target=self._wait, name="contextrl-interrupt", daemon=True).start()
 
     def _wait(self) -> None:
-        signal.sigwait({signal.SIGINT})
-        self.stop()
+        while not self.closed.is_set():
+            if signal.sigtimedwait({signal.SIGINT}, 0.2) is not None:
+                self.stop()
 
     def stop(self) -> None:
         hint = (
@@ -190,6 +192,7 @@ class _Interrupt:
         os._exit(130)
 
     def close(self) -> None:
+        self.closed.set()
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         signal.signal(signal.SIGINT, self.previous)
 
@@ -310,7 +313,9 @@ def add_run(subparsers) -> None:
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
     parser.add_argument("--executor", default="local", help="local or ray")
     parser.add_argument("--address", help="Ray cluster address (default: start a local one)")
-    parser.add_argument("--max-chunks", type=count, help="stop after this many chunks (resume later)")
+    parser.add_argument(
+        "--max-chunks", type=count, help="stop after this many chunks (resume later)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.add_argument(
         "--dry-run",

@@ -102,7 +102,7 @@ def describe_plan(spec: CommonSpec, *, calibrate_time: bool = True) -> str:
         "a chunk is the unit written and resumed)"
     )
     train_steps = sum(_timesteps(spec, t.variant) for t in plan.trials)
-    max_steps = spec.make_env().max_steps
+    max_steps = spec.max_steps or spec.make_env().default_max_steps
     eval_steps = sum(
         (len(plan.sets[t.test_set]) + (2 * TRAIN_EVAL_CONTEXTS if agent.trained else 0))
         * spec.eval_episodes

@@ -23,6 +23,7 @@ from contextrl.experiments.analyze import build_report
 from contextrl.experiments.protocols import expand, stack_sets, trial_key
 from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import SpecError, _check_int, distribution_to_yaml
+from contextrl.experiments.trials import host_context_input, host_returns
 
 EVAL_KEY = 1_000_003
 
@@ -81,21 +82,30 @@ def evaluate_run(
     frames = []
     for (variant, template_name), members in groups.items():
         template = plan.sets[template_name].contexts
-        policy = agent.make_policy(spec.agent_config(variant), env, template)
-        params = (
-            stack_sets([load_checkpoint(folder / f"{t.id}.npz") for t in members])
-            if agent.trained
-            else None
-        )
-        keys = jax.numpy.stack(
-            [jax.random.fold_in(trial_key(spec.seed, t.id), EVAL_KEY) for t in members]
-        )
+        keys = [jax.random.fold_in(trial_key(spec.seed, t.id), EVAL_KEY) for t in members]
+        saved = [
+            load_checkpoint(folder / f"{t.id}.npz") if agent.trained else None for t in members
+        ]
+        if spec.host:  # host copies of the new contexts, one agent after the other
+            context = host_context_input(spec, variant, env, template)
+            spaces = (env.action_space, env.base_observation_space)
+            act = agent.make_host_policy(spec.agent_config(variant), *spaces, context)
+            returns = np.stack(
+                [
+                    host_returns(spec, context, act, params, contexts, episodes, key)
+                    for params, key in zip(saved, keys, strict=True)
+                ]
+            )
+        else:  # every agent of the group in one vmapped call
+            policy = agent.make_policy(spec.agent_config(variant), env, template)
 
-        def one(params, key, policy=policy):
-            return evaluate(policy, params, env, contexts, episodes, key)
+            def one(params, key, policy=policy):
+                return evaluate(policy, params, env, contexts, episodes, key)
 
-        in_axes = (0 if agent.trained else None, 0)
-        returns = np.asarray(jax.jit(jax.vmap(one, in_axes=in_axes))(params, keys))
+            in_axes = (0 if agent.trained else None, 0)
+            params = stack_sets(saved) if agent.trained else None
+            vmapped = jax.jit(jax.vmap(one, in_axes=in_axes))
+            returns = np.asarray(vmapped(params, jax.numpy.stack(keys)))
         for row, trial in enumerate(members):
             frames.append(
                 pd.DataFrame(
