@@ -79,6 +79,14 @@ def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.variants:
         data["variants"] = args.variants.split(",")
     options = dict(data.get("agent_options") or {})
+    if args.agent_config:
+        loaded = yaml.safe_load(Path(args.agent_config).read_text(encoding="utf-8"))
+        if not isinstance(loaded, dict):
+            raise SpecError(
+                f"--agent-config {args.agent_config}: expected a YAML mapping of agent options "
+                "(as written by contextrl run hpo)"
+            )
+        options.update(loaded)
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
     options.update(_assignments(args.agent_option, "--agent-option"))
@@ -166,6 +174,11 @@ def add_run(subparsers) -> None:
         "--agent-option", action="append", default=[], metavar="KEY=VALUE", help="agent config"
     )
     parser.add_argument(
+        "--agent-config",
+        metavar="YAML",
+        help="agent options from a file, e.g. the best.yaml of an hpo run (--agent-option wins)",
+    )
+    parser.add_argument(
         "--set",
         action="append",
         default=[],
@@ -177,7 +190,9 @@ def add_run(subparsers) -> None:
     parser.add_argument("--root", default="runs", help="where new run directories go")
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
     parser.add_argument("--executor", default="local", help="local or ray")
-    parser.add_argument("--address", help="Ray cluster address (default: start a local one)")
+    parser.add_argument(
+        "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
+    )
     parser.add_argument("--max-chunks", type=int, help="stop after this many chunks (resume later)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(handler=run_command)
