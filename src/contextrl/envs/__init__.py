@@ -29,3 +29,14 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
     for _name in DMC_ENVIRONMENTS:
         _factory = functools.partial(_make_dmc, _name)
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
+
+
+def _make_rna(**kwargs):
+    """Build RnaDesign; ViennaRNA is imported when the first one is made, not on import."""
+    from contextrl.envs.rna import RnaDesign
+
+    return RnaDesign(**kwargs)
+
+
+if importlib.util.find_spec("RNA") is not None:  # the optional `rna` extra (viennarna)
+    register("RnaDesign", _make_rna, family="rna", aliases=("CARLRnaDesignEnv",), host=True)
