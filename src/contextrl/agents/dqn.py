@@ -312,10 +312,11 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
         return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params = nets.q.init(init_key)
+        if params is None:  # given params: continue training them (population-based tuning)
+            params = nets.q.init(init_key)
         opt_state = optimizer.init(params)
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))

@@ -6,9 +6,9 @@
     results = jax.jit(jax.vmap(train))(keys)              # many seeds in one call
     specialists = jax.jit(jax.vmap(train))(keys, sets)    # one agent per context set (leading axis)
 
-``train(key, contexts=None)``: with ``contexts`` omitted the agent trains on the ``train_contexts``
-given to ``make_train``; a batch of the same shape trains on that set instead, which is how ``vmap``
-trains specialists. Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
+``train(key, contexts=None, params=None)``: with ``contexts`` omitted the agent trains on the
+``train_contexts`` given to ``make_train``; a batch of the same shape trains on that set instead, which
+is how ``vmap`` trains specialists. ``params`` continues training given parameters (fresh optimiser). Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
 the action bounds when stepping). Episodes cut by the time limit bootstrap from the value of the final
 observation instead of counting as failures.
 """
@@ -326,10 +326,11 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
     optimizer, value, learn = _learner(config, nets)
     progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params = _init_params(nets, config, init_key)
+        if params is None:  # given params: continue training them (population-based tuning)
+            params = _init_params(nets, config, init_key)
         opt_state = optimizer.init(params)
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)

@@ -6,7 +6,7 @@ entropy tuning); the whole run one JAX function.
     train = sac.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
 
-``train(key, contexts=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
+``train(key, contexts=None, params=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
 actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
 followed by one actor (and temperature) update; each logging period is one metrics row.
 """
@@ -263,8 +263,8 @@ def _learner(config: SACConfig, nets: _Networks):
     alpha_optimizer = optax.adam(config.policy_lr)
     target_entropy = -float(nets.action_size)
 
-    def init(key):
-        params = _init(nets, config, key)
+    def init(key, params=None):
+        params = _init(nets, config, key) if params is None else params
         opt_states = (
             actor_optimizer.init(params["actor"]),
             critic_optimizer.init(params["critic"]),
@@ -333,10 +333,10 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         config.progress_every,
     )
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params, target_critic, opt_states = init(init_key)
+        params, target_critic, opt_states = init(init_key, params)  # given: continue them
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs

@@ -184,6 +184,26 @@ def heatmap(
     return figure
 
 
+def schedules(
+    panels: Mapping[str, Mapping[str, tuple[Sequence[float], Sequence[float]]]], xlabel: str = ""
+):
+    """A panel per quantity (a hyper-parameter, the return), one step line per member over time."""
+    names = list(panels)
+    columns = min(3, len(names))
+    rows = -(-len(names) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.0 * rows), squeeze=False)
+    for axis, name in zip(axes.ravel(), names, strict=False):
+        for label, (x, y) in panels[name].items():
+            axis.step(np.asarray(x), np.asarray(y), where="post", label=str(label), alpha=0.8)
+        axis.set(xlabel=xlabel, title=name)
+        axis.grid(alpha=0.3)
+    for axis in axes.ravel()[len(names) :]:
+        axis.set_visible(False)
+    axes.ravel()[0].legend(fontsize="x-small")
+    figure.tight_layout()
+    return figure
+
+
 def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
     """Environment properties on a radar chart, each axis scaled by its largest value."""
     names = list(properties)

@@ -9,6 +9,7 @@ the package registers them all.
 """
 
 from contextrl.experiments import (  # noqa: F401  (registers the protocols)
+    hpo,
     optimality_gap,
     sensitivity,
     tabular,

@@ -206,6 +206,8 @@ def _binned(x: np.ndarray, bins: int = 12) -> np.ndarray:
 
 
 def _train_range(plan, results: pd.DataFrame, feature: str) -> tuple[float, float] | None:
+    if "train_set" not in results:
+        return None
     values = [
         np.asarray(getattr(plan.sets[name].contexts, feature), dtype=float)
         for name in {*results["train_set"].unique()}

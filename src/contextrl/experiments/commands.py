@@ -72,12 +72,16 @@ def count(text: str) -> int:
     return int(value)
 
 
-def _load_config(path: str) -> dict[str, Any]:
+def _load_yaml_file(path: str, option: str) -> Any:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as error:
-        raise SpecError(f"--config {path}: {error.strerror or error}") from None
-    loaded = load_yaml(text, f"--config {path}")
+        raise SpecError(f"{option} {path}: {error.strerror or error}") from None
+    return load_yaml(text, f"{option} {path}")
+
+
+def _load_config(path: str) -> dict[str, Any]:
+    loaded = _load_yaml_file(path, "--config")
     if not isinstance(loaded, dict):
         raise SpecError(f"--config {path}: expected a YAML mapping of spec fields")
     return loaded
@@ -120,6 +124,14 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
     if not isinstance(options, Mapping):
         raise SpecError(agent_options_error(options))
     options = dict(options)
+    if args.agent_config:
+        loaded = _load_yaml_file(args.agent_config, "--agent-config")
+        if not isinstance(loaded, dict):
+            raise SpecError(
+                f"--agent-config {args.agent_config}: expected a YAML mapping of agent options "
+                "(as written by contextrl run hpo)"
+            )
+        options.update(loaded)
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
     options.update(_assignments(args.agent_option, "--agent-option"))
@@ -141,7 +153,7 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
 # Options that shape a spec: refused with --resume, which continues the run its spec.yaml describes.
 SPEC_OPTIONS = (
     "protocol", "config", "env", "agent", "variants", "seeds", "seed", "timesteps", "episodes",
-    "max_steps", "vary", "test", "agent_option", "set", "name", "out", "dry_run",
+    "max_steps", "vary", "test", "agent_option", "agent_config", "set", "name", "out", "dry_run",
 )  # fmt: skip
 
 
@@ -301,6 +313,11 @@ def add_run(subparsers) -> None:
         "--agent-option", action="append", default=[], metavar="KEY=VALUE", help="agent config"
     )
     parser.add_argument(
+        "--agent-config",
+        metavar="YAML",
+        help="agent options from a file, e.g. the best.yaml of an hpo run (--agent-option wins)",
+    )
+    parser.add_argument(
         "--set",
         action="append",
         default=[],
@@ -312,7 +329,9 @@ def add_run(subparsers) -> None:
     parser.add_argument("--root", default="runs", help="where new run directories go")
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
     parser.add_argument("--executor", default="local", help="local or ray")
-    parser.add_argument("--address", help="Ray cluster address (default: start a local one)")
+    parser.add_argument(
+        "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
+    )
     parser.add_argument(
         "--max-chunks", type=count, help="stop after this many chunks (resume later)"
     )

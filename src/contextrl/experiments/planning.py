@@ -89,7 +89,10 @@ def describe_plan(spec: CommonSpec, *, calibrate_time: bool = True) -> str:
     plan = expand(spec)
     lines = [f"dry run of {spec.protocol} ({spec.name}); nothing is written"]
     if not plan.trials:
-        lines.append("  no agents to train; this protocol computes its results directly")
+        lines.append(
+            f"  no chunks of trials: the {spec.protocol} protocol runs its own schedule "
+            "(see its spec fields); no time estimate"
+        )
         return "\n".join(lines)
     agent = spec.agent_entry()
     kinds = sorted({t.kind for t in plan.trials})

@@ -71,6 +71,10 @@ def evaluate_run(
         jax.random.fold_in(jax.random.key(spec.seed), EVAL_KEY),
     )
     plan = expand(spec)
+    if not plan.trials:
+        raise SpecError(
+            f"{run.path}: the {spec.protocol} protocol keeps no agent per trial to evaluate"
+        )
     agent = spec.agent_entry()
     folder = run.path / "checkpoints"
     trials = [t for t in plan.trials if not agent.trained or (folder / f"{t.id}.npz").exists()]

@@ -132,12 +132,15 @@ class RunDir:
             write_parquet(self.path / "curves" / f"chunk-{chunk:04d}.parquet", result.curves)
         if len(result.training):
             write_parquet(self.path / "training" / f"chunk-{chunk:04d}.parquet", result.training)
-        timings = self.timings()
-        timings[str(chunk)] = result.seconds
-        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
+        self.record_timing(chunk, result.seconds)
         with contextlib.suppress(FileNotFoundError):
             (self.path / "failures" / f"chunk-{chunk:04d}.json").unlink()
         write_parquet(self.result_path(chunk), result.evaluations)
+
+    def record_timing(self, chunk: int, seconds: float) -> None:
+        timings = self.timings()
+        timings[str(chunk)] = seconds
+        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
 
     def record_failure(self, chunk: int, trial_ids: list[str], error: str, traceback: str) -> None:
         record = {"chunk": chunk, "trials": trial_ids, "error": error, "traceback": traceback}
