@@ -75,6 +75,11 @@ def save_checkpoint(
     arrays = _flatten(params)
     arrays[_META_KEY] = np.asarray(json.dumps(info))
     if train_contexts is not None:
+        if not hasattr(getattr(train_contexts, "space", None), "to_array"):
+            raise TypeError(
+                "train_contexts must be a batch of contexts (e.g. crl.sample(env, spec, n, key)), "
+                f"got {type(train_contexts).__name__}"
+            )
         arrays[_CONTEXTS_KEY] = np.asarray(train_contexts.space.to_array(train_contexts))
 
     def write(temporary: str) -> None:
