@@ -151,7 +151,7 @@ def curves_by_variant(curves: pd.DataFrame) -> tuple[np.ndarray, dict[str, np.nd
     return curves_by_label(curves, lambda frame: frame["variant"])
 
 
-PER_CONTEXT_ROWS = 60  # rows of the per-context table shown in the report (the CSV has them all)
+PER_CONTEXT_ROWS = 30  # rows of the per-context table shown in the report (the CSV has them all)
 LABEL_COLUMNS = ("region", "mode", "feature", "magnitude", "context")
 
 
@@ -299,10 +299,14 @@ def per_context_section(
                     f"Mean test return over the {x_name} × {y_name} plane, {label}",
                 )
             )
-    shown = table.head(PER_CONTEXT_ROWS).to_dict("records")
-    more = len(table) - len(shown)
-    caption = "Return per context (mean and standard deviation over seeds)" + (
-        f"; first {len(shown)} of {len(table)} rows, all in {csv}" if more else ""
+    # one row per context, a column per agent: easy to read across; the CSV has spreads and seeds
+    keys = [c for c in table.columns if c not in ("agent", "mean_return", "std_return", "seeds")]
+    wide = table.pivot_table(index=keys, columns="agent", values="mean_return", sort=False)
+    wide = wide[sorted(wide.columns, key=natural_key)].reset_index()
+    shown = wide.head(PER_CONTEXT_ROWS).to_dict("records")
+    more = len(wide) - len(shown)
+    caption = "Mean return per context and agent (over seeds)" + (
+        f"; first {len(shown)} of {len(wide)} contexts, all in {csv}" if more else ""
     )
     text = [*text, f"Every evaluated context, all agents: {csv}."]
     intervals = interval_estimates(
