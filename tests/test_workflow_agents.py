@@ -85,3 +85,21 @@ def test_ppo_on_a_host_environment_says_how_to_train_it():
     assert "DmcWalker is a host environment" in message and "ppo.train_gymnasium" in message
     assert "crl.make(...)" not in message
     env.close()
+
+
+def test_host_collector_curve_is_never_nan():
+    """CartPole pays 1 per step: after two steps with no episode ended the row is the running mean 2;
+    after an end, that episode's return; then it is kept while nothing ends."""
+    from contextrl.agents.host import HostCollector
+
+    with HostCollector("CartPole", 2, None, seed=0, max_steps=3) as collector:
+        for _ in range(2):
+            collector.step(np.zeros(2, np.int64))
+        row = collector.close_period()
+        assert row["episode_return"] == 2.0 and row["episodes_finished"] == 0
+        collector.step(np.zeros(2, np.int64))  # the time limit ends both episodes at 3 steps
+        row = collector.close_period()
+        assert row["episode_return"] == 3.0 and row["episodes_finished"] == 2
+        collector.step(np.zeros(2, np.int64))
+        row = collector.close_period()
+        assert row["episode_return"] == 3.0 and row["episodes_finished"] == 0
