@@ -93,6 +93,11 @@ TINY_RANDOM = ["--agent", "random", "--max-steps", "10", "--episodes", "1", "--s
             ["A=100 gives length = 50, outside its bounds [0.05, 5]", "choose A in [0.1, 10]"],
         ),
         (
+            ["run", "train_test", "--agent", "random", "--set", "num_test_contexts=150"],
+            {},
+            ["num_test_contexts: the test contexts form a side × side grid", "use 144 or 169"],
+        ),
+        (
             ["run", "--resume", "somewhere", "--seeds", "5"],
             {},
             ["--resume somewhere continues the run as its spec.yaml says; --seeds cannot apply"],

@@ -67,6 +67,12 @@ class TrainTestSpec(CommonSpec):
             raise SpecError("modes: give at least one of ['A', 'B', 'C']")
         _check_int("num_train_contexts", self.num_train_contexts, 1)
         _check_int("num_test_contexts", self.num_test_contexts, 4)
+        side = int(np.sqrt(self.num_test_contexts))
+        if side * side != self.num_test_contexts:
+            raise SpecError(
+                f"num_test_contexts: the test contexts form a side × side grid, and "
+                f"{self.num_test_contexts} is not a square; use {side * side} or {(side + 1) ** 2}"
+            )
         _check_number("band", self.band, 0.0)
         if not self.band < 1.0:
             raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
