@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import socket
 import sys
 import threading
 from collections.abc import Mapping
@@ -173,40 +174,45 @@ def _refuse_spec_options(args: argparse.Namespace) -> None:
 class _Interrupt:
     """Ctrl-C stops ``contextrl run`` within a second, whatever it is doing (compiling included).
 
-    SIGINT is blocked in this thread (and so in every thread started after, XLA's included) and waited
-    for by a watcher thread, which prints how to resume and exits at once: a half-written file is a
-    temporary name that a resumed run ignores, so nothing needs cleaning up.
+    Python runs signal handlers in the main thread between bytecodes, so during a long compile a
+    handler waits. But the C-level handler writes the signal number to the wakeup fd at once, from
+    any thread: a watcher thread reading it prints how to resume and exits the process there and then.
+    A half-written file is a temporary name that a resumed run ignores, so nothing needs cleaning up;
+    child processes (a local Ray) get the terminal's Ctrl-C themselves.
     """
 
     def __init__(self) -> None:
         self.run_path: Path | None = None
         self.on_exit: list = []
-        self.closed = threading.Event()
-        # a thread started before this one may still take SIGINT: then the handler stops the same way
+        self._lock = threading.Lock()
+        self._reader, self._writer = socket.socketpair()
+        self._writer.setblocking(False)
+        self.previous_fd = signal.set_wakeup_fd(self._writer.fileno())
         self.previous = signal.signal(signal.SIGINT, lambda signum, frame: self.stop())
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         threading.Thread(target=self._wait, name="contextrl-interrupt", daemon=True).start()
 
     def _wait(self) -> None:
-        while not self.closed.is_set():
-            if signal.sigtimedwait({signal.SIGINT}, 0.2) is not None:
+        while data := self._reader.recv(64):
+            if signal.SIGINT in data:
                 self.stop()
 
     def stop(self) -> None:
-        hint = (
-            f"; resume with: contextrl run --resume {self.run_path}"
-            if self.run_path is not None
-            else ""
-        )
-        for callback in self.on_exit:
-            callback()
-        print(f"\ncontextrl run: interrupted{hint}", file=sys.stderr, flush=True)
-        os._exit(130)
+        with self._lock:
+            hint = (
+                f"; resume with: contextrl run --resume {self.run_path}"
+                if self.run_path is not None
+                else ""
+            )
+            for callback in self.on_exit:
+                callback()
+            print(f"\ncontextrl run: interrupted{hint}", file=sys.stderr, flush=True)
+            os._exit(130)
 
     def close(self) -> None:
-        self.closed.set()
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.set_wakeup_fd(self.previous_fd)
         signal.signal(signal.SIGINT, self.previous)
+        self._writer.close()  # the watcher reads end-of-file and returns
+        self._reader.shutdown(socket.SHUT_RDWR)
 
 
 def _create_run(spec, args) -> RunDir:
