@@ -350,3 +350,23 @@ def test_tensorboard_holds_curves_and_test_returns(trained_run):
     )
     mean = results.loc[results["trial"] == "visibility-concat_varying-s1", "return"].mean()
     assert logged["test/mean_return"] == [(0, pytest.approx(mean))]
+
+
+def test_eval_on_a_host_environment_run(tmp_path):
+    """A dm_control run's agents are evaluated in host copies of the new contexts."""
+    pytest.importorskip("dm_control")
+    result = contextrl(
+        "run", "visibility", "--env", "DmcWalker", "--agent", "random", "--variants", "hidden",
+        "--seeds", "1", "--max-steps", "5", "--episodes", "1", "--set", "num_train_contexts=2",
+        "--set", "num_test_contexts=2", "--vary", "viscosity=uniform:0:1", "--out", "walker",
+        "--quiet", cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    result = contextrl(
+        "eval", "walker", "--test", "viscosity=uniform:2:4", "--contexts", "2", "--episodes", "1",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    frame = pd.read_parquet(tmp_path / "walker" / "evaluations" / "eval-1.parquet")
+    assert len(frame) == 2 and frame["ctx.viscosity"].between(2, 4).all()
+    assert np.isfinite(frame["return"]).all()
