@@ -3,3 +3,8 @@
 Every context value is held by the environment instance: no module global of gymnasium's Box2D modules is
 read or written, so two instances with different contexts in one process stay isolated.
 """
+
+from contextrl.envs.box2d.bipedal_walker import BipedalWalker, BipedalWalkerContext
+from contextrl.envs.box2d.lunar_lander import LunarLander, LunarLanderContext
+
+__all__ = ["BipedalWalker", "BipedalWalkerContext", "LunarLander", "LunarLanderContext"]
