@@ -29,3 +29,22 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
     for _name in DMC_ENVIRONMENTS:
         _factory = functools.partial(_make_dmc, _name)
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
+
+BOX2D_ENVIRONMENTS = {  # id: (class name, constructor arguments, CARL's names)
+    "LunarLander": ("LunarLander", {}, ("CARLLunarLander",)),
+    "LunarLanderContinuous": ("LunarLander", {"continuous": True}, ()),
+    "BipedalWalker": ("BipedalWalker", {}, ("CARLBipedalWalker",)),
+}
+
+
+def _make_box2d(name: str, defaults: dict, **kwargs):
+    """Build a Box2D environment; Box2D is imported when the first one is made, not on import."""
+    from contextrl.envs import box2d
+
+    return getattr(box2d, name)(**{**defaults, **kwargs})
+
+
+if importlib.util.find_spec("Box2D") is not None:  # the optional `box2d` extra
+    for _id, (_name, _defaults, _aliases) in BOX2D_ENVIRONMENTS.items():
+        _factory = functools.partial(_make_box2d, _name, _defaults)
+        register(_id, _factory, family="box2d", aliases=_aliases, host=True)

@@ -462,10 +462,12 @@ class BipedalWalker(Box2DEnv):
             raise RuntimeError(f"{self.name}: call reset_physics before render_frame")
         canvas = self._canvas(self.scroll, background=(215, 215, 255))
         left, right = canvas.x_min, canvas.x_max
+        drift = self.scroll / 2  # clouds move at half the walker's speed
         for cloud in self.clouds:
-            xs = [p[0] for p in cloud]
+            shifted = [(x + drift, y) for x, y in cloud]
+            xs = [p[0] for p in shifted]
             if max(xs) >= left and min(xs) <= right:
-                canvas.polygon(cloud, (255, 255, 255))
+                canvas.polygon(shifted, (255, 255, 255))
         for quad in self.ground:
             if quad[1][0] >= left and quad[0][0] <= right:
                 canvas.polygon(quad, (102, 153, 76))
