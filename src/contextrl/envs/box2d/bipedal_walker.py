@@ -72,14 +72,14 @@ class BipedalWalkerContext(ContextBase):
     )
     TERRAIN_LENGTH: int = feature(
         200, 100, 500, kind="int", doc="terrain segments; the goal is 'TERRAIN_GRASS' before the end",
-        affects=("dynamics", "reward"),
+        affects=("dynamics", "goal"),
     )  # fmt: skip
     TERRAIN_HEIGHT: float = feature(
         10 / 3, 3.0, 10.0, unit="m", doc="height of the flat start pad", affects=("start_state",)
     )
     TERRAIN_GRASS: int = feature(
         10, 5, 15, kind="int", doc="longest stretch of grass between obstacles (segments)",
-        affects=("dynamics", "reward"),
+        affects=("dynamics", "goal"),
     )  # fmt: skip
     TERRAIN_STARTPAD: int = feature(
         20,
@@ -123,7 +123,7 @@ class BipedalWalkerContext(ContextBase):
     )  # fmt: skip
     VIEWPORT_W: int = feature(
         600, 400, 1000, kind="int", unit="px", doc="drawn window width; scales the x velocity seen",
-        affects=("observation", "reward"),
+        affects=("observation",),
     )  # fmt: skip
     VIEWPORT_H: int = feature(
         400, 200, 800, kind="int", unit="px", doc="drawn window height; scales the y velocity seen",
@@ -298,9 +298,7 @@ class BipedalWalker(Box2DEnv):
             counter -= 1
             if counter == 0:
                 counter = int(rng.integers(grass // 2, grass))
-                state = (
-                    int(rng.integers(STUMP, PIT + 1)) if state == GRASS and hardcore else GRASS
-                )
+                state = int(rng.integers(STUMP, PIT + 1)) if state == GRASS and hardcore else GRASS
                 oneshot = True
         self.ground: list[tuple[list[tuple[float, float]], tuple[int, int, int]]] = []
         for i in range(len(self.terrain_x) - 1):
