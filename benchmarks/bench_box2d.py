@@ -110,7 +110,7 @@ def single(name: str, steps: int, block: int = 500) -> tuple[float, float]:
     ours = gymnasium.make(f"contextrl/{name}-v0", contexts=CONTEXTS[name])
     actions = random_actions(original.action_space, steps)
     times = [0.0, 0.0]
-    for side, env in enumerate((original, ours)):
+    for env in (original, ours):
         env.reset(seed=0)
         run_block(env, actions[:block])  # warm-up
     for begin in range(0, steps, block):
@@ -185,7 +185,9 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     names = ("LunarLander", "BipedalWalker")
 
-    rows = [["env (non-default context)", "gymnasium", "CARL 1.1.1", "contextrl", "× gym", "× CARL"]]
+    rows = [
+        ["env (non-default context)", "gymnasium", "CARL 1.1.1", "contextrl", "× gym", "× CARL"]
+    ]
     for name in names:
         original, ours = single(name, args.steps)
         carl = None
@@ -204,7 +206,9 @@ def main(argv=None) -> None:
         )
     print("1. one environment, steps/s\n" + table(rows) + "\n")
 
-    rows = [["env", "env same µs", "env switch µs", "switch cost µs", "gym same µs", "gym switch µs"]]
+    rows = [
+        ["env", "env same µs", "env switch µs", "switch cost µs", "gym same µs", "gym switch µs"]
+    ]
     for cls, name in ((LunarLander, "LunarLander"), (BipedalWalker, "BipedalWalker")):
         cost = switch_cost(cls, name, args.switches)
         rows.append(
