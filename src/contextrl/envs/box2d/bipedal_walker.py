@@ -25,6 +25,9 @@ import Box2D
 import gymnasium
 import numpy as np
 from Box2D.b2 import (
+    bodyDef as b2BodyDef,
+)
+from Box2D.b2 import (
     contactListener,
     edgeShape,
     fixtureDef,
@@ -195,6 +198,10 @@ class BipedalWalker(Box2DEnv):
         self.joints: list = []
         self.foot_contact = [False] * 4
         self.game_over = False
+        self._ground = b2BodyDef()  # static, at the origin
+        self._edge = fixtureDef(shape=edgeShape(vertices=[(0, 0), (1, 1)]), categoryBits=0x0001)
+        square = [(0, 0), (1, 0), (1, -1), (0, -1)]
+        self._block = fixtureDef(shape=polygonShape(vertices=square), categoryBits=0x0001)
         self._lidar = _Lidar()
         angles = [1.5 * i / 10.0 for i in range(LIDAR_RAYS)]
         self._ray_directions = [(math.sin(a), -math.cos(a)) for a in angles]
@@ -232,10 +239,12 @@ class BipedalWalker(Box2DEnv):
             self.world.DestroyBody(body)
         self.terrain, self.hull, self.legs, self.joints = [], None, [], []
 
-    def _static(self, shape, friction: float, color) -> None:
-        body = self.world.CreateStaticBody(
-            fixtures=fixtureDef(shape=shape, friction=friction, categoryBits=0x0001)
-        )
+    def _static(self, definition, vertices, color) -> None:
+        """A ground body (an edge or an obstacle) from a reused definition: building the terrain's
+        hundreds of bodies from fresh definitions would cost more than gymnasium's reset."""
+        definition.shape.vertices = vertices
+        body = self.world.CreateBody(self._ground)
+        body.CreateFixture(definition)
         self.terrain.append(body)
         self._colors.append(color)
 
@@ -247,7 +256,9 @@ class BipedalWalker(Box2DEnv):
             int(v["TERRAIN_STARTPAD"]),
             int(v["TERRAIN_GRASS"]),
         )
-        terrain_height, friction, scale = v["TERRAIN_HEIGHT"], v["FRICTION"], v["SCALE"]
+        terrain_height, scale = v["TERRAIN_HEIGHT"], v["SCALE"]
+        edge, block = self._edge, self._block
+        edge.friction = block.friction = v["FRICTION"]
         obstacle = ((255, 255, 255), (153, 153, 153))
         self.terrain, self._colors = [], []
         state, velocity, y, counter, oneshot = GRASS, 0.0, terrain_height, start_pad, False
@@ -265,9 +276,9 @@ class BipedalWalker(Box2DEnv):
             elif state == PIT and oneshot:
                 counter = int(rng.integers(3, 5))
                 wall = [(x, y), (x + step, y), (x + step, y - 4 * step), (x, y - 4 * step)]
-                self._static(polygonShape(vertices=wall), friction, obstacle)
+                self._static(block, wall, obstacle)
                 far = [(px + step * counter, py) for px, py in wall]
-                self._static(polygonShape(vertices=far), friction, obstacle)
+                self._static(block, far, obstacle)
                 counter += 2
                 original_y = y
             elif state == PIT and not oneshot:
@@ -278,7 +289,7 @@ class BipedalWalker(Box2DEnv):
                 counter = int(rng.integers(1, 3))
                 size = counter * step
                 stump = [(x, y), (x + size, y), (x + size, y + size), (x, y + size)]
-                self._static(polygonShape(vertices=stump), friction, obstacle)
+                self._static(block, stump, obstacle)
             elif state == STAIRS and oneshot:
                 stair_height = +1 if rng.random() > 0.5 else -1
                 stair_width = int(rng.integers(4, 5))
@@ -288,7 +299,7 @@ class BipedalWalker(Box2DEnv):
                     left, right = x + (s * stair_width) * step, x + ((1 + s) * stair_width) * step
                     top, bottom = y + (s * stair_height) * step, y + (-1 + s * stair_height) * step
                     stair = [(left, top), (right, top), (right, bottom), (left, bottom)]
-                    self._static(polygonShape(vertices=stair), friction, obstacle)
+                    self._static(block, stair, obstacle)
                 counter = stair_steps * stair_width
             elif state == STAIRS and not oneshot:
                 s = stair_steps * stair_width - counter - stair_height
@@ -300,15 +311,13 @@ class BipedalWalker(Box2DEnv):
                 counter = int(rng.integers(grass // 2, grass))
                 state = int(rng.integers(STUMP, PIT + 1)) if state == GRASS and hardcore else GRASS
                 oneshot = True
-        self.ground: list[tuple[list[tuple[float, float]], tuple[int, int, int]]] = []
+        self.ground: list[list[tuple[float, float]]] = []  # the grass under each edge, for drawing
         for i in range(len(self.terrain_x) - 1):
-            edge = [
-                (self.terrain_x[i], self.terrain_y[i]),
-                (self.terrain_x[i + 1], self.terrain_y[i + 1]),
-            ]
+            left = (self.terrain_x[i], self.terrain_y[i])
+            right = (self.terrain_x[i + 1], self.terrain_y[i + 1])
             green = (76, 255 if i % 2 == 0 else 204, 76)
-            self._static(edgeShape(vertices=edge), friction, (green, green))
-            self.ground.append([*edge, (edge[1][0], 0.0), (edge[0][0], 0.0)])
+            self._static(edge, [left, right], (green, green))
+            self.ground.append([left, right, (right[0], 0.0), (left[0], 0.0)])
         self.terrain.reverse()
         self._colors.reverse()
 
