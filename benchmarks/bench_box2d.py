@@ -122,25 +122,34 @@ def single(name: str, steps: int, block: int = 500) -> tuple[float, float]:
 
 
 def switch_cost(cls, name: str, count: int) -> dict[str, float]:
-    """Microseconds per reset: same context vs alternating contexts, on the env and via gymnasium."""
+    """Median microseconds per reset keeping the context and per reset switching it, measured
+    interleaved (medians: a loaded machine's spikes fall on neither side), on the env and through
+    gymnasium (a one-context set against a two-context set in round robin)."""
     env = cls()
-    same, other = (env.context(**values) for values in SWITCH[name])
+    first, second = (env.context(**values) for values in SWITCH[name])
     rng = np.random.default_rng(0)
-    out = {}
-    for label, contexts in (("env same", (same, same)), ("env switch", (same, other))):
-        env.reset_physics(contexts[0], rng)
-        start = time.perf_counter()
-        for i in range(count):
-            env.reset_physics(contexts[i % 2], rng)
-        out[label] = (time.perf_counter() - start) / count * 1e6
-    for label, contexts in (("gym same", [SWITCH[name][0]]), ("gym switch", list(SWITCH[name]))):
-        gym_env = gymnasium.make(f"contextrl/{name}-v0", contexts=contexts)
+    same, switch = [], []
+    env.reset_physics(first, rng)
+    for _ in range(count):
+        for context, times in ((first, same), (second, switch), (first, switch)):
+            start = time.perf_counter()
+            env.reset_physics(context, rng)
+            times.append(time.perf_counter() - start)
+    out = {"env same": np.median(same) * 1e6, "env switch": np.median(switch) * 1e6}
+    keep = gymnasium.make(f"contextrl/{name}-v0", contexts=[SWITCH[name][0]])
+    alternate = gymnasium.make(f"contextrl/{name}-v0", contexts=list(SWITCH[name]))
+    times = {keep: [], alternate: []}
+    for gym_env in times:
         gym_env.reset(seed=0)
-        start = time.perf_counter()
-        for _ in range(count):
+    for _ in range(count):
+        for gym_env, spent in times.items():
+            start = time.perf_counter()
             gym_env.reset()
-        out[label] = (time.perf_counter() - start) / count * 1e6
-        gym_env.close()
+            spent.append(time.perf_counter() - start)
+    out["gym same"] = np.median(times[keep]) * 1e6
+    out["gym switch"] = np.median(times[alternate]) * 1e6
+    keep.close()
+    alternate.close()
     return out
 
 
