@@ -8,7 +8,6 @@ writes how a context is applied and how the simulator steps; it is vectorised ac
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Any, ClassVar
 
@@ -44,19 +43,16 @@ class HostEnv:
         return self.context_space.make(**values)
 
     def context_values(self, context: Any) -> dict[str, float]:
-        """The context as plain floats, checked (type, bounds, finite, unbatched, valid combination).
+        """One unbatched context as plain floats, checked (type, one value each, finite, bounds).
 
-        The same checks as ``context_space.check``, written for one unbatched context so that a
-        context switch stays far below a millisecond. A value whose float32 rounding is the declared
-        default's (a context holds float32) becomes the declared default itself, so a default like
-        ``14 / 30`` reaches the simulator exactly as the original environment has it.
+        The checks of ``context_space.check`` written for one context, cheap enough for every reset.
         """
         if not isinstance(context, self.context_type):
             raise ContextError(
                 f"{self.name}: expected a {self.context_type.__name__}, got {type(context).__name__}"
             )
         values = {}
-        for name, lower, upper, default, default32 in _feature_table(self.context_type):
+        for name, feature in self.context_space.features.items():
             value = np.asarray(getattr(context, name))
             if value.ndim != 0:
                 raise ContextError(
@@ -65,18 +61,14 @@ class HostEnv:
             value = float(value)
             if not math.isfinite(value):
                 raise ContextError(f"{name}: value {value!r} is not finite (NaN or inf)")
+            lower, upper = float(np.float32(feature.lower)), float(np.float32(feature.upper))
             if not lower <= value <= upper:  # compared as float32, the precision a context holds
-                feature = self.context_space.features[name]
                 raise ContextError(
                     f"{name}: value {value:g} is outside its bounds "
                     f"[{feature.lower:g}, {feature.upper:g}]"
                 )
-            values[name] = default if value == default32 else value
-        self._check_combination(values)
+            values[name] = value
         return values
-
-    def _check_combination(self, values: dict[str, float]) -> None:
-        """Raise ContextError for physically impossible combinations (environments override)."""
 
     # ---- written by each host environment ------------------------------------------------------------
     @property
@@ -97,24 +89,13 @@ class HostEnv:
         """``(observation, reward, terminated)`` for one action under the current context."""
         raise NotImplementedError
 
+    def step_info(self) -> dict[str, Any]:
+        """Entries the gymnasium adapter adds to ``info`` after each reset and step (none by default)."""
+        return {}
+
     def render_frame(self) -> np.ndarray:
         """An RGB frame (H, W, 3, uint8) of the current state."""
         raise NotImplementedError
 
     def close(self) -> None:
         """Release simulator resources."""
-
-
-@functools.cache
-def _feature_table(context_type: type) -> tuple[tuple[str, float, float, float, float], ...]:
-    """Per feature: name, float32 bounds, declared default and its float32 rounding."""
-    return tuple(
-        (
-            name,
-            float(np.float32(f.lower)),
-            float(np.float32(f.upper)),
-            float(f.default),
-            float(np.float32(f.default)),
-        )
-        for name, f in context_type.space.features.items()
-    )

@@ -48,3 +48,14 @@ if importlib.util.find_spec("Box2D") is not None:  # the optional `box2d` extra
     for _id, (_name, _defaults, _aliases) in BOX2D_ENVIRONMENTS.items():
         _factory = functools.partial(_make_box2d, _name, _defaults)
         register(_id, _factory, family="box2d", aliases=_aliases, host=True)
+
+
+def _make_rna(**kwargs):
+    """Build RnaDesign; ViennaRNA is imported when the first one is made, not on import."""
+    from contextrl.envs.rna import RnaDesign
+
+    return RnaDesign(**kwargs)
+
+
+if importlib.util.find_spec("RNA") is not None:  # the optional `rna` extra (viennarna)
+    register("RnaDesign", _make_rna, family="rna", aliases=("CARLRnaDesignEnv",), host=True)

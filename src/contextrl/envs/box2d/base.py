@@ -7,6 +7,7 @@ the order gymnasium draws them, which makes the default context gymnasium's envi
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -27,6 +28,15 @@ class Box2DEnv(HostEnv):
     def __init__(self) -> None:
         self._values: dict[str, float] = self.context_values(self.default_context())
         self._rng: np.random.Generator | None = None
+
+    def context_values(self, context: Any) -> dict[str, float]:
+        """The checked values, a float32 rounding of a declared default (a context holds float32)
+        given back as that default, so ``14 / 30`` reaches Box2D exactly as gymnasium has it."""
+        values = super().context_values(context)
+        for name, default, rounded in _defaults(self.context_type):
+            if values[name] == rounded:
+                values[name] = default
+        return values
 
     @property
     def control_timestep(self) -> float:
@@ -71,3 +81,12 @@ def paint_body(canvas: Canvas, body, fill: tuple[int, int, int], outline: tuple[
         canvas.polygon(points, fill)
         for start, end in zip(points, points[1:] + points[:1], strict=True):
             canvas.line(start, end, 1.0 / canvas.scale, outline)
+
+
+@functools.cache
+def _defaults(context_type: type) -> tuple[tuple[str, float, float], ...]:
+    """Per feature: name, declared default and its float32 rounding."""
+    return tuple(
+        (name, float(f.default), float(np.float32(f.default)))
+        for name, f in context_type.space.features.items()
+    )

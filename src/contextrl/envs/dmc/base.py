@@ -266,6 +266,15 @@ class DmcEnv(HostEnv):
         self._physics.free()
 
     # ---- context ------------------------------------------------------------------------------------
+    def context_values(self, context: Any) -> dict[str, float]:
+        """The context as plain floats, checked (type, bounds, finite, unbatched, valid combination)."""
+        values = super().context_values(context)
+        self._check_combination(values)
+        return values
+
+    def _check_combination(self, values: dict[str, float]) -> None:
+        """Raise ContextError for physically impossible combinations (domains override)."""
+
     def _appliers(self) -> set[str]:
         """Names of the features this class knows how to apply."""
         return {
