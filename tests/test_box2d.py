@@ -380,7 +380,7 @@ def test_landing_in_space_spec_validates_against_the_lander():
     from contextrl.experiments.protocols import region_of
     from contextrl.experiments.spec import TrainTestSpec
 
-    data = yaml.safe_load((EXAMPLES / "landing_in_space.yaml").read_text())
+    data = yaml.safe_load((EXAMPLES / "box2d" / "train_test_landing_in_space.yaml").read_text())
 
     class HostTrainTest(TrainTestSpec):
         """Validation with the host env itself, until the protocols train host environments."""
