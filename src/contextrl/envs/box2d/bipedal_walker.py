@@ -45,6 +45,7 @@ TERRAIN_KINDS = (
     5  # gymnasium draws the next obstacle from [1, 5): stump, stairs, pit (twice as often)
 )
 LIDAR_RAYS = 10
+WALKER = "walker"  # the userData of the walker's fixtures, which the lidar looks through
 VELOCITY_ITERATIONS, POSITION_ITERATIONS = 6 * 30, 2 * 30
 
 
@@ -161,12 +162,13 @@ class _Contacts(contactListener):
 
 
 class _Lidar(rayCastCallback):
-    """The nearest ground hit along a ray (fixtures outside the ground category are passed through)."""
+    """The nearest ground hit along a ray; the walker's own fixtures (marked by their ``userData``,
+    cheaper to read than gymnasium's category bits, which single out the same fixtures) are passed
+    through."""
 
     def ReportFixture(self, fixture, point, normal, fraction):
-        if (fixture.filterData.categoryBits & 1) == 0:
+        if fixture.userData is not None:
             return -1
-        self.end = point
         self.fraction = fraction
         return fraction
 
@@ -205,7 +207,6 @@ class BipedalWalker(Box2DEnv):
         self._lidar = _Lidar()
         angles = [1.5 * i / 10.0 for i in range(LIDAR_RAYS)]
         self._ray_directions = [(math.sin(a), -math.cos(a)) for a in angles]
-        self._lidar_ends: list[tuple[float, float]] = []
 
     @property
     def action_space(self) -> gymnasium.spaces.Box:
@@ -229,6 +230,8 @@ class BipedalWalker(Box2DEnv):
         self._build_walker()
         self._goal_x = (v["TERRAIN_LENGTH"] - v["TERRAIN_GRASS"]) * v["TERRAIN_STEP"]
         self._window = (v["VIEWPORT_W"] / v["SCALE"], v["VIEWPORT_H"] / v["SCALE"])
+        reach = v["LIDAR_RANGE"]
+        self._ray_offsets = [(dx * reach, dy * reach) for dx, dy in self._ray_directions]
         return self._advance([0.0, 0.0, 0.0, 0.0])[0]
 
     def _destroy(self) -> None:
@@ -351,6 +354,7 @@ class BipedalWalker(Box2DEnv):
                 categoryBits=0x0020,
                 maskBits=0x001,  # collides only with the ground
                 restitution=0.0,
+                userData=WALKER,
             ),
         )
         push = v["INITIAL_RANDOM"]
@@ -393,7 +397,12 @@ class BipedalWalker(Box2DEnv):
             position=position,
             angle=side * 0.05,
             fixtures=fixtureDef(
-                shape=shape, density=1.0, restitution=0.0, categoryBits=0x0020, maskBits=0x001
+                shape=shape,
+                density=1.0,
+                restitution=0.0,
+                categoryBits=0x0020,
+                maskBits=0x001,
+                userData=WALKER,
             ),
         )
         self.legs.append(limb)
@@ -416,16 +425,14 @@ class BipedalWalker(Box2DEnv):
 
         hull = self.hull
         position, velocity = hull.position, hull.linearVelocity
-        lidar, reach, world = self._lidar, v["LIDAR_RANGE"], self.world
-        fractions, ends = [], []
-        for dx, dy in self._ray_directions:
+        lidar, world = self._lidar, self.world
+        x, y = position[0], position[1]
+        fractions = []
+        for dx, dy in self._ray_offsets:
             lidar.fraction = 1.0
-            end = (position[0] + dx * reach, position[1] + dy * reach)
-            lidar.end = end
-            world.RayCast(lidar, position, end)
+            world.RayCast(lidar, position, (x + dx, y + dy))
             fractions.append(lidar.fraction)
-            ends.append(tuple(lidar.end))
-        self._lidar_ends = ends
+        self._lidar_seen = (x, y), fractions
         hip_a, knee_a, hip_b, knee_b = self.joints
         state = [
             hull.angle,
@@ -483,8 +490,9 @@ class BipedalWalker(Box2DEnv):
             if isinstance(shape, Box2D.b2PolygonShape):
                 paint_body(canvas, body, fill, outline)
         pixel = 1.0 / canvas.scale
-        for end in self._lidar_ends:
-            canvas.line(tuple(self.hull.position), end, pixel, (255, 0, 0))
+        (x, y), fractions = self._lidar_seen
+        for (dx, dy), fraction in zip(self._ray_offsets, fractions, strict=True):
+            canvas.line((x, y), (x + fraction * dx, y + fraction * dy), pixel, (255, 0, 0))
         for index, body in enumerate((*self.legs, self.hull)):
             if body is self.hull:
                 paint_body(canvas, body, (127, 51, 229), (76, 76, 127))
