@@ -54,13 +54,21 @@ class BipedalWalkerContext(ContextBase):
     """Context features of BipedalWalker; the defaults are gymnasium's ``BipedalWalker-v3``."""
 
     FPS: float = feature(
-        50.0, 1.0, 500.0, unit="1/s", doc="physics steps (and actions) per second",
+        50.0,
+        1.0,
+        500.0,
+        unit="1/s",
+        doc="physics steps (and actions) per second",
         affects=("dynamics", "observation", "reward"),
-    )  # fmt: skip
+    )
     SCALE: float = feature(
-        30.0, 1.0, 100.0, unit="px/m", doc="pixels per metre of the hull, slope noise and reward",
+        30.0,
+        1.0,
+        100.0,
+        unit="px/m",
+        doc="pixels per metre of the hull, slope noise and reward",
         affects=("dynamics", "start_state", "observation", "reward"),
-    )  # fmt: skip
+    )
     GRAVITY_X: float = feature(0.0, -20.0, 20.0, unit="m/s²", doc="gravity along x")
     GRAVITY_Y: float = feature(
         -10.0, -20.0, -0.01, unit="m/s²", doc="gravity along y (negative: down)"
@@ -72,19 +80,27 @@ class BipedalWalkerContext(ContextBase):
         1.0,
         unit="m",
         doc="width of one terrain segment",
-        affects=("dynamics", "reward"),
+        affects=("dynamics", "start_state", "goal"),
     )
     TERRAIN_LENGTH: int = feature(
-        200, 100, 500, kind="int", doc="terrain segments; the goal is 'TERRAIN_GRASS' before the end",
+        200,
+        100,
+        500,
+        kind="int",
+        doc="terrain segments; the goal is 'TERRAIN_GRASS' before the end",
         affects=("dynamics", "goal"),
-    )  # fmt: skip
+    )
     TERRAIN_HEIGHT: float = feature(
         10 / 3, 3.0, 10.0, unit="m", doc="height of the flat start pad", affects=("start_state",)
     )
     TERRAIN_GRASS: int = feature(
-        10, 5, 15, kind="int", doc="longest stretch of grass between obstacles (segments)",
+        10,
+        5,
+        15,
+        kind="int",
+        doc="longest stretch of grass between obstacles (segments)",
         affects=("dynamics", "goal"),
-    )  # fmt: skip
+    )
     TERRAIN_STARTPAD: int = feature(
         20,
         10,
@@ -94,9 +110,13 @@ class BipedalWalkerContext(ContextBase):
         affects=("dynamics", "start_state"),
     )
     MOTORS_TORQUE: float = feature(
-        80.0, 0.01, 200.0, unit="N·m", doc="largest torque of each joint's motor",
+        80.0,
+        0.01,
+        200.0,
+        unit="N·m",
+        doc="largest torque of each joint's motor",
         affects=("dynamics", "reward"),
-    )  # fmt: skip
+    )
     SPEED_HIP: float = feature(
         4.0,
         0.01,
@@ -122,21 +142,39 @@ class BipedalWalkerContext(ContextBase):
     LEG_W: float = feature(8 / 30, 0.25, 0.5, unit="m", doc="width of the upper legs (lower: 80 %)")
     LEG_H: float = feature(34 / 30, 0.25, 2.0, unit="m", doc="length of each leg segment")
     INITIAL_RANDOM: float = feature(
-        5.0, 0.0, 50.0, unit="N", doc="largest random forward push at the start",
+        5.0,
+        0.0,
+        50.0,
+        unit="N",
+        doc="largest random forward push at the start",
         affects=("start_state",),
-    )  # fmt: skip
+    )
     VIEWPORT_W: int = feature(
-        600, 400, 1000, kind="int", unit="px", doc="drawn window width; scales the x velocity seen",
+        600,
+        400,
+        1000,
+        kind="int",
+        unit="px",
+        doc="drawn window width; scales the x velocity seen",
         affects=("observation",),
-    )  # fmt: skip
+    )
     VIEWPORT_H: int = feature(
-        400, 200, 800, kind="int", unit="px", doc="drawn window height; scales the y velocity seen",
+        400,
+        200,
+        800,
+        kind="int",
+        unit="px",
+        doc="drawn window height; scales the y velocity seen",
         affects=("observation",),
-    )  # fmt: skip
+    )
     hardcore: int = feature(
-        "off", 0, 1, kind="categorical", choices=("off", "on"),
+        "off",
+        0,
+        1,
+        kind="categorical",
+        choices=("off", "on"),
         doc="gymnasium's hardcore terrain: stumps, pits and stairs",
-    )  # fmt: skip
+    )
 
 
 class _Contacts(contactListener):

@@ -49,19 +49,31 @@ class LunarLanderContext(ContextBase):
     """Context features of LunarLander; the defaults are gymnasium's ``LunarLander-v3``."""
 
     FPS: float = feature(
-        50.0, 1.0, 500.0, unit="1/s", doc="physics steps (and actions) per second",
+        50.0,
+        1.0,
+        500.0,
+        unit="1/s",
+        doc="physics steps (and actions) per second",
         affects=("dynamics", "observation", "reward"),
-    )  # fmt: skip
+    )
     SCALE: float = feature(
-        30.0, 1.0, 100.0, unit="px/m", doc="pixels per metre: every size in pixels is divided by it",
+        30.0,
+        1.0,
+        100.0,
+        unit="px/m",
+        doc="pixels per metre: every size in pixels is divided by it",
         affects=SHAPE,
-    )  # fmt: skip
+    )
     MAIN_ENGINE_POWER: float = feature(13.0, 0.0, 50.0, doc="impulse scale of the main engine")
     SIDE_ENGINE_POWER: float = feature(0.6, 0.0, 50.0, doc="impulse scale of the side engines")
     INITIAL_RANDOM: float = feature(
-        1000.0, 0.0, 2000.0, unit="N", doc="largest random push on each axis at the start",
+        1000.0,
+        0.0,
+        2000.0,
+        unit="N",
+        doc="largest random push on each axis at the start",
         affects=("start_state",),
-    )  # fmt: skip
+    )
     GRAVITY_X: float = feature(0.0, -20.0, 20.0, unit="m/s²", doc="gravity along x")
     GRAVITY_Y: float = feature(
         -10.0, -25.0, 0.01, unit="m/s²", doc="gravity along y (negative: down)"
@@ -70,9 +82,13 @@ class LunarLanderContext(ContextBase):
         20.0, 0.0, 50.0, unit="px", doc="sideways distance of each leg's hinge"
     )
     LEG_DOWN: float = feature(
-        18.0, 0.0, 50.0, unit="px", doc="depth of the legs' hinges; the pad height y=0 sits this far",
+        18.0,
+        0.0,
+        50.0,
+        unit="px",
+        doc="depth of the legs' hinges; the pad height y=0 sits this far",
         affects=("dynamics", "observation", "reward"),
-    )  # fmt: skip
+    )
     LEG_W: float = feature(2.0, 1.0, 10.0, unit="px", doc="half-width of a leg")
     LEG_H: float = feature(8.0, 1.0, 20.0, unit="px", doc="half-length of a leg")
     LEG_SPRING_TORQUE: float = feature(40.0, 0.0, 100.0, doc="largest torque of the legs' springs")
