@@ -343,6 +343,9 @@ class HostBackend:
         self.obs_context = obs_context
         self.max_steps = max_steps
         self.action_space = env.action_space
+        if isinstance(self.action_space, gymnasium.spaces.Box):
+            bounds = (self.action_space.low, self.action_space.high)
+            self._action_bounds = tuple(bound.ravel().tolist() for bound in bounds)
         base = env.base_observation_space
         self.base_size = int(np.prod(base.shape))
         low, high = obs_context.bounds(self.space) if not obs_context.hidden else ([], [])
@@ -353,9 +356,6 @@ class HostBackend:
         )
         self.obs_size = self.flat_space.shape[0]
         self.table = on_cpu(schedule.table)
-        if isinstance(self.action_space, gymnasium.spaces.Box):
-            self._action_low = self.action_space.low.ravel().tolist()
-            self._action_high = self.action_space.high.ravel().tolist()
         self._choose = cpu_jit(self._choose_fn)
         self._values = cpu_jit(lambda context, key: obs_context.values(self.space, context, key))
         self.time = 0
@@ -364,18 +364,9 @@ class HostBackend:
         self._fixed_extra: np.ndarray | None = None
 
     def _choose_fn(self, key_bits, episode):
-        """The episode's context vector, set index and key bits as one uint32 vector: one transfer
-        to the host instead of three (each costs tens of microseconds)."""
         select_key, env_key = episode_keys(key_bits, episode)
         context_vector, index = self.schedule.choose(select_key, episode, self.table)
-        index = jnp.reshape(index, (1,)).astype(jnp.int32)
-        return jnp.concatenate(
-            [
-                jax.lax.bitcast_convert_type(context_vector.astype(jnp.float32), jnp.uint32),
-                jax.lax.bitcast_convert_type(index, jnp.uint32),
-                jax.random.key_data(env_key).ravel(),
-            ]
-        )
+        return context_vector, index, jax.random.key_data(env_key)
 
     def _observation(self, base_obs) -> np.ndarray:
         base_obs = np.asarray(base_obs, np.float32).ravel()
@@ -391,11 +382,9 @@ class HostBackend:
     def start(
         self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
     ) -> tuple[np.ndarray, np.ndarray, int]:
-        words = np.asarray(self._choose(key_bits, np.int32(episode)))
-        size = len(self.space.names)
-        chosen, index, env_key_bits = words[:size].view(np.float32), words[size], words[size + 1 :]
+        chosen, index, env_key_bits = self._choose(key_bits, np.int32(episode))
         context_vector = np.asarray(chosen if context is None else context, np.float32)
-        index = -1 if context is not None else int(index.view(np.int32))
+        index = -1 if context is not None else int(index)
         # Built with NumPy: ``from_array``'s JAX ops would cost milliseconds per reset on the host.
         self.context = self.space.context_class(
             **{
@@ -405,14 +394,19 @@ class HostBackend:
                 )
             }
         )
+        self._episode_key = jax.random.wrap_key_data(env_key_bits)
         self._fixed_extra = None
-        if not self.obs_context.hidden:  # the key only feeds the context observation
-            self._episode_key = jax.random.wrap_key_data(env_key_bits)
-            if self.obs_context.noise == 0:
-                self._fixed_extra = np.asarray(self._values(self.context, self._episode_key))
+        if not self.obs_context.hidden and self.obs_context.noise == 0:
+            self._fixed_extra = np.asarray(self._values(self.context, self._episode_key))
         self.time = 0
         base_obs = self.env.reset_physics(self.context, rng)
         return self._observation(base_obs), context_vector, index
+
+    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
+        base_obs, reward, terminated = self.env.step_physics(self._checked_action(action))
+        self.time += 1
+        obs = self._observation(base_obs)
+        return obs, float(reward), bool(terminated), self.time >= self.max_steps
 
     def _checked_action(self, action: Any) -> Any:
         """``action`` if it lies in the action space, else ValueError; ``Space.contains`` costs as
@@ -427,22 +421,15 @@ class HostBackend:
                 return index
         elif isinstance(space, gymnasium.spaces.Box):
             values = np.asarray(action, space.dtype)
+            low, high = self._action_bounds
             if values.shape == space.shape and all(
-                low <= value <= high  # False for NaN
-                for value, low, high in zip(
-                    values.ravel().tolist(), self._action_low, self._action_high, strict=True
-                )
+                lower <= value <= upper  # False for NaN
+                for value, lower, upper in zip(values.ravel().tolist(), low, high, strict=True)
             ):
                 return values
         elif space.contains(np.asarray(action, space.dtype)):
             return action
         raise ValueError(f"action {action!r} is outside the action space {space}")
-
-    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        base_obs, reward, terminated = self.env.step_physics(self._checked_action(action))
-        self.time += 1
-        obs = self._observation(base_obs)
-        return obs, float(reward), bool(terminated), self.time >= self.max_steps
 
     def close(self) -> None:
         self.env.close()
