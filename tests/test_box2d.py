@@ -402,3 +402,39 @@ def test_landing_in_space_spec_validates_against_the_lander():
         low, high = test["GRAVITY_Y"]
         assert low <= g * multiple <= high
         spec.space().make(GRAVITY_Y=g * multiple)
+
+
+# ---- rendering ------------------------------------------------------------------------------------
+def test_frames_show_the_context_and_the_cli_renders_the_family(tmp_path):
+    from contextrl.cli import main
+
+    def painted(env, context, color) -> int:
+        env.reset_physics(context, np.random.default_rng(0))
+        return int(np.all(env.render_frame() == color, axis=-1).sum())
+
+    lander, walker = LunarLander(), BipedalWalker()
+    purple = (128, 102, 230)
+    short = painted(lander, lander.context(LEG_H=4.0, INITIAL_RANDOM=0.0), purple)
+    long = painted(lander, lander.context(LEG_H=20.0, INITIAL_RANDOM=0.0), purple)
+    assert long > short > 0
+    far_leg = (178, 101, 152)  # sizes in metres are drawn at SCALE pixels per metre
+    assert painted(walker, walker.context(LEG_H=2.0), far_leg) > painted(
+        walker, walker.context(), far_leg
+    )
+    out = tmp_path / "walkers.gif"
+    assert (
+        main(
+            [
+                "render",
+                "BipedalWalker",
+                "--grid",
+                "hardcore=off,on",
+                "--steps",
+                "3",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 0
