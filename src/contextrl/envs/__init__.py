@@ -29,3 +29,20 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
     for _name in DMC_ENVIRONMENTS:
         _factory = functools.partial(_make_dmc, _name)
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
+
+
+def _make_vehicle_racing(**kwargs):
+    """Build VehicleRacing; Box2D and pygame are imported when the first one is made, not on import."""
+    from contextrl.envs.box2d.vehicle_racing import VehicleRacing
+
+    return VehicleRacing(**kwargs)
+
+
+if importlib.util.find_spec("Box2D") is not None and importlib.util.find_spec("pygame") is not None:
+    register(
+        "VehicleRacing",
+        _make_vehicle_racing,
+        family="box2d",
+        aliases=("CARLVehicleRacing",),
+        host=True,
+    )
