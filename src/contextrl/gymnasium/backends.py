@@ -345,7 +345,9 @@ class HostBackend:
         self.action_space = env.action_space
         base = env.base_observation_space
         self.base_size = int(np.prod(base.shape))
-        if obs_context.hidden:  # the original observation as it is (pixels keep their shape and dtype)
+        if (
+            obs_context.hidden
+        ):  # the original observation as it is (pixels keep their shape and dtype)
             self.flat_space = base
         else:
             low, high = obs_context.bounds(self.space)

@@ -6,3 +6,11 @@ read or written, so two instances with different contexts in one process stay is
 
 from contextrl.envs.box2d.garage import GARAGE, VEHICLE_NAMES, Vehicle
 from contextrl.envs.box2d.vehicle_racing import VehicleRacing, VehicleRacingContext
+
+__all__ = [
+    "GARAGE",
+    "VEHICLE_NAMES",
+    "Vehicle",
+    "VehicleRacing",
+    "VehicleRacingContext",
+]

@@ -43,7 +43,9 @@ class Wheel:
     steered: bool = False
     driven: bool = False
     brake_share: float = 1.0
-    steer_limit: float = 0.4  # joint angle limit (rad); unsteered wheels are held straight by the motor
+    steer_limit: float = (
+        0.4  # joint angle limit (rad); unsteered wheels are held straight by the motor
+    )
 
 
 @dataclasses.dataclass(frozen=True)

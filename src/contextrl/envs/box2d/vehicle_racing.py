@@ -410,7 +410,12 @@ class VehicleRacing(HostEnv):
         for i in range(len(track)):
             _, beta1, x1, y1 = track[i]
             _, beta2, x2, y2 = track[i - 1]
-            cos1, sin1, cos2, sin2 = math.cos(beta1), math.sin(beta1), math.cos(beta2), math.sin(beta2)
+            cos1, sin1, cos2, sin2 = (
+                math.cos(beta1),
+                math.sin(beta1),
+                math.cos(beta2),
+                math.sin(beta2),
+            )
             road = [
                 (x1 - width * cos1, y1 - width * sin1),
                 (x1 + width * cos1, y1 + width * sin1),
@@ -753,7 +758,12 @@ class VehicleRacing(HostEnv):
         pygame.draw.polygon(
             surface,
             color=(0, 0, 0),
-            points=[(WINDOW_W, bottom), (WINDOW_W, bottom - 5 * h), (0, bottom - 5 * h), (0, bottom)],
+            points=[
+                (WINDOW_W, bottom),
+                (WINDOW_W, bottom - 5 * h),
+                (0, bottom - 5 * h),
+                (0, bottom),
+            ],
         )
 
         def vertical(place, value):
