@@ -318,8 +318,16 @@ class VehicleRacing(HostEnv):
         pygame.font.init()
         self._font = pygame.font.Font(pygame.font.get_default_font(), 42)
         self._surface = pygame.Surface((WINDOW_W, WINDOW_H))
-        self.world: Box2D.b2World | None = None
+        # One world per instance, emptied at every reset (as CarRacing's): a Box2D world dropped whole
+        # with its contact listener is never freed.
+        self.world = Box2D.b2World((0, 0), contactListener=TileContacts(self))
+        self.track: list | None = None
         self.vehicle: Vehicle | None = None
+        # Fixture definitions are reused: pybox2d never frees one (a leak of ~300 bytes each).
+        self._tile_fixture = fixtureDef(
+            shape=polygonShape(vertices=[(0, 0), (1, 0), (1, -1), (0, -1)]), isSensor=True
+        )
+        self._fixtures: dict[str, tuple] = {}
 
     # ---- HostEnv interface ------------------------------------------------------------------------
     @property
@@ -336,7 +344,7 @@ class VehicleRacing(HostEnv):
             raise TypeError(f"{self.name}: rng must be a numpy.random.Generator, got {rng!r}")
         self.vehicle = GARAGE[vehicle_index]
         self.turn_rate, self.track_width = turn_rate, width
-        self.world = Box2D.b2World((0, 0), contactListener=TileContacts(self))
+        self._clear_world()
         self.reward = self.previous_reward = 0.0
         self.visited_count = 0
         self.time = 0.0
@@ -354,18 +362,24 @@ class VehicleRacing(HostEnv):
         return self._advance(None)[0]
 
     def step_physics(self, action) -> tuple[np.ndarray, float, bool]:
-        if self.world is None:
+        if self.track is None:
             raise RuntimeError(f"{self.name}: call reset_physics before step_physics")
         return self._advance(self._check_action(action))
 
     def render_frame(self) -> np.ndarray:
-        if self.world is None:
+        if self.track is None:
             raise RuntimeError(f"{self.name}: call reset_physics before render_frame")
         return self._draw((VIDEO_W, VIDEO_H), skid_marks=True)
 
     def close(self) -> None:
-        self.world = None
-        self.tiles = self.wheels = self.bodies = ()
+        self._clear_world()
+
+    def _clear_world(self) -> None:
+        """Destroy the last episode's bodies (and with them their joints)."""
+        for body in list(self.world.bodies):
+            self.world.DestroyBody(body)
+        self.track = None
+        self.tiles = self.wheels = self.bodies = self.joints = ()
 
     # ---- context -----------------------------------------------------------------------------------
     def context_values(self, context: Any) -> tuple[int, float, float, int]:
@@ -423,9 +437,8 @@ class VehicleRacing(HostEnv):
                 (x2 - width * cos2, y2 - width * sin2),
             ]
             tile = Tile(i, len(polygons))
-            body = self.world.CreateStaticBody(
-                fixtures=fixtureDef(shape=polygonShape(vertices=road), isSensor=True)
-            )
+            self._tile_fixture.shape.vertices = road
+            body = self.world.CreateStaticBody(fixtures=self._tile_fixture)
             body.userData = tile
             tiles.append(tile)
             polygons.append(road)
@@ -455,39 +468,21 @@ class VehicleRacing(HostEnv):
         multiple of 2π, so the pull is small).
         """
         vehicle = self.vehicle
-
-        def polygons(parts, offset=(0.0, 0.0), **filtering):
-            return [
-                fixtureDef(
-                    shape=polygonShape(
-                        vertices=[
-                            ((px + offset[0]) * UNIT, (py + offset[1]) * UNIT)
-                            for px, py in part.vertices
-                        ]
-                    ),
-                    density=part.density,
-                    **filtering,
-                )
-                for part in parts
-            ]
-
+        if vehicle.name not in self._fixtures:
+            self._fixtures[vehicle.name] = vehicle_fixtures(vehicle)
+        hull_fixtures, trailer_fixtures, wheel_fixtures = self._fixtures[vehicle.name]
         self.hull = self.world.CreateDynamicBody(
-            position=(x, y), angle=angle, fixtures=polygons(vehicle.hull)
+            position=(x, y), angle=angle, fixtures=hull_fixtures
         )
         self.wheels: list[WheelState] = []
         self.bodies = [(self.hull, vehicle.color)]  # drawn after the wheels
         self.joints = []
-        self._attach_wheels(self.hull, vehicle.wheels, (0.0, 0.0), angle, x, y)
+        self._attach_wheels(self.hull, vehicle.wheels, wheel_fixtures, (0.0, 0.0), angle, x, y)
         pulling = self.hull
         hitch = vehicle.hitch
-        for part in () if vehicle.trailer is None else vehicle.trailer.bodies:
-            body = self.world.CreateDynamicBody(
-                position=(x, y),
-                angle=angle,
-                fixtures=polygons(
-                    part.polygons, hitch, categoryBits=TRAILER_CATEGORY, maskBits=GROUND_CATEGORY
-                ),
-            )
+        parts = () if vehicle.trailer is None else vehicle.trailer.bodies
+        for part, fixtures in zip(parts, trailer_fixtures, strict=True):
+            body = self.world.CreateDynamicBody(position=(x, y), angle=angle, fixtures=fixtures)
             anchor = ((hitch[0] + part.hitch[0]) * UNIT, (hitch[1] + part.hitch[1]) * UNIT)
             self.joints.append(
                 self.world.CreateJoint(
@@ -502,29 +497,21 @@ class VehicleRacing(HostEnv):
                     )
                 )
             )
-            self._attach_wheels(body, part.wheels, hitch, angle, x, y)
+            self._attach_wheels(body, part.wheels, wheel_fixtures, hitch, angle, x, y)
             self.bodies.insert(len(self.bodies) - 1, (body, part.color))
             pulling = body
         self.driven = [w for w in self.wheels if w.spec.driven]
         self.steered = [w for w in self.wheels if w.spec.steered]
 
-    def _attach_wheels(self, body, specs, offset, angle: float, x: float, y: float) -> None:
+    def _attach_wheels(
+        self, body, specs, fixtures, offset, angle: float, x: float, y: float
+    ) -> None:
         for spec in specs:
             wx, wy = spec.x + offset[0], spec.y + offset[1]
-            r, w = spec.radius, spec.half_width
             wheel = self.world.CreateDynamicBody(
                 position=(x + wx * UNIT, y + wy * UNIT),
                 angle=angle,
-                fixtures=fixtureDef(
-                    shape=polygonShape(
-                        vertices=[(-w * UNIT, r * UNIT), (w * UNIT, r * UNIT)]
-                        + [(w * UNIT, -r * UNIT), (-w * UNIT, -r * UNIT)]
-                    ),
-                    density=WHEEL_DENSITY,
-                    categoryBits=WHEEL_CATEGORY,
-                    maskBits=GROUND_CATEGORY,
-                    restitution=0.0,
-                ),
+                fixtures=fixtures[spec.radius, spec.half_width],
             )
             joint = self.world.CreateJoint(
                 revoluteJointDef(
@@ -794,6 +781,50 @@ class VehicleRacing(HostEnv):
         for value, points, color in bars:
             if abs(value) > 1e-4:
                 pygame.draw.polygon(surface, points=points, color=color)
+
+
+def vehicle_fixtures(vehicle: Vehicle) -> tuple[list, list[list], dict]:
+    """Box2D fixture definitions of a vehicle: the hull's, each trailer body's (in the hull's frame,
+    behind the hitch) and one per wheel size. Built once per vehicle and environment, because pybox2d
+    never frees a definition's shape."""
+
+    def polygons(parts, offset=(0.0, 0.0), **filtering):
+        return [
+            fixtureDef(
+                shape=polygonShape(
+                    vertices=[
+                        ((px + offset[0]) * UNIT, (py + offset[1]) * UNIT)
+                        for px, py in part.vertices
+                    ]
+                ),
+                density=part.density,
+                **filtering,
+            )
+            for part in parts
+        ]
+
+    def wheel(radius: float, half_width: float):
+        r, w = radius, half_width
+        return fixtureDef(
+            shape=polygonShape(
+                vertices=[(-w * UNIT, r * UNIT), (w * UNIT, r * UNIT)]
+                + [(w * UNIT, -r * UNIT), (-w * UNIT, -r * UNIT)]
+            ),
+            density=WHEEL_DENSITY,
+            categoryBits=WHEEL_CATEGORY,
+            maskBits=GROUND_CATEGORY,
+            restitution=0.0,
+        )
+
+    parts = () if vehicle.trailer is None else vehicle.trailer.bodies
+    trailer = [
+        polygons(
+            part.polygons, vehicle.hitch, categoryBits=TRAILER_CATEGORY, maskBits=GROUND_CATEGORY
+        )
+        for part in parts
+    ]
+    sizes = {(spec.radius, spec.half_width) for spec in vehicle.all_wheels}
+    return polygons(vehicle.hull), trailer, {size: wheel(*size) for size in sizes}
 
 
 def to_screen(view, x: float, y: float) -> tuple[float, float]:
