@@ -42,7 +42,8 @@ steps, vehicle_id = int(sys.argv[1]), int(sys.argv[2])
 context = dict(CARLVehicleRacing.get_default_context(), VEHICLE_ID=vehicle_id)
 env = CARLVehicleRacing(contexts={0: context})
 env.reset(seed=0)
-actions = np.random.default_rng(0).uniform([-1, 0, 0], [1, 1, 1], (steps, 3)).astype(np.float32)
+# float64: CARL's street cars and buses raise a TypeError in Box2D for float32 actions
+actions = np.random.default_rng(0).uniform([-1, 0, 0], [1, 1, 1], (steps, 3))
 start = time.perf_counter()
 for i, action in enumerate(actions):
     env.step(action)
