@@ -8,7 +8,8 @@ Prints two tables:
    vehicles, stepped directly (``step_physics``) and through ``gymnasium.make`` (ratios to gymnasium).
    Sides run in alternating blocks so that the load of a shared machine falls on all alike. With
    ``--carl``, CARL's ``CARLVehicleRacing`` (``carl-bench``, in ``.venv-carl``, see
-   ``bench_gymnasium.py``) is measured too.
+   ``bench_gymnasium.py``; it needs ``box2d`` and ``pygame`` there too) is timed against its own
+   gymnasium's CarRacing in its own process, and compared with ours through the two ratios.
 2. the cost of a context switch at reset: resets alternating between two vehicles against resets that
    keep one, and gymnasium's reset for reference (every reset lays out and builds a new track).
 """
@@ -38,18 +39,25 @@ import json, sys, time, warnings
 warnings.filterwarnings("ignore")
 import numpy as np
 from carl.envs import CARLVehicleRacing
-steps, vehicle_id = int(sys.argv[1]), int(sys.argv[2])
+from gymnasium.envs.box2d.car_racing import CarRacing
+steps, block, vehicle_id = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 context = dict(CARLVehicleRacing.get_default_context(), VEHICLE_ID=vehicle_id)
-env = CARLVehicleRacing(contexts={0: context})
-env.reset(seed=0)
+carl = CARLVehicleRacing(contexts={0: context})
+stock = CarRacing()
+carl.reset(seed=0)
+stock.reset(seed=0)
 # float64: CARL's street cars and buses raise a TypeError in Box2D for float32 actions
 actions = np.random.default_rng(0).uniform([-1, 0, 0], [1, 1, 1], (steps, 3))
-start = time.perf_counter()
-for i, action in enumerate(actions):
-    env.step(action)
-    if (i + 1) % 1000 == 0:
-        env.reset()
-print(json.dumps({"steps_per_s": steps / (time.perf_counter() - start)}))
+seconds = [0.0, 0.0]
+for start in range(0, steps, block):
+    for side, env in enumerate((carl, stock)):
+        began = time.perf_counter()
+        for i in range(start, min(start + block, steps)):
+            env.step(actions[i])
+            if (i + 1) % 1000 == 0:
+                env.reset(seed=0)
+        seconds[side] += time.perf_counter() - began
+print(json.dumps({"carl": steps / seconds[0], "gymnasium": steps / seconds[1]}))
 """
 
 
@@ -90,21 +98,27 @@ def stepping(steps: int, block: int = 50) -> dict[str, float]:
     return {name: steps / value for name, value in seconds.items()}
 
 
-def carl_rate(steps: int, vehicle_id: int) -> float:
-    """Steps/s of CARL's CARLVehicleRacing in its own virtual environment."""
+def carl_rates(steps: int, vehicle_id: int, block: int = 50) -> dict[str, float]:
+    """Steps/s of CARL's CARLVehicleRacing and of the CarRacing of CARL's gymnasium, timed in
+    alternating blocks in CARL's own virtual environment."""
     path = Path(__file__).with_name("bench_gymnasium.py")
     spec = importlib.util.spec_from_file_location("bench_gymnasium", path)
     bench_gymnasium = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench_gymnasium)
     python = bench_gymnasium.carl_python()
+    if subprocess.run([str(python), "-c", "import Box2D, pygame"], capture_output=True).returncode:
+        # carl-bench's own box2d extra builds box2d-py from source (needs swig): use the wheels
+        subprocess.run(
+            [str(python), "-m", "pip", "install", "-q", "box2d==2.3.10", "pygame"], check=True
+        )
     result = subprocess.run(
-        [str(python), "-c", CARL_SCRIPT, str(steps), str(vehicle_id)],
+        [str(python), "-c", CARL_SCRIPT, str(steps), str(block), str(vehicle_id)],
         capture_output=True,
         text=True,
         check=True,
         env={**os.environ, "PYTHONWARNINGS": "ignore", "SDL_VIDEODRIVER": "dummy"},
     )
-    return json.loads(result.stdout.strip().splitlines()[-1])["steps_per_s"]
+    return json.loads(result.stdout.strip().splitlines()[-1])
 
 
 def switching(resets: int) -> tuple[float, float, float]:
@@ -137,12 +151,23 @@ def main() -> None:
     print("1. steps/s, one env, seeded random actions, an episode restarts every 1000 steps")
     rates = stepping(args.steps)
     stock = rates["gymnasium CarRacing-v3"]
-    if args.carl:
-        for name in VEHICLES:
-            rates[f"CARL {name}"] = carl_rate(args.steps, VEHICLE_NAMES.index(name))
     print(f"{'side':<50}{'steps/s':>9}{'vs gymnasium':>14}")
     for name, value in rates.items():
         print(f"{name:<50}{value:>9.0f}{value / stock:>14.2f}")
+    if args.carl:
+        print(
+            "\nCARL, timed against the CarRacing of its own gymnasium in its own process "
+            "(ours vs CARL = ratio of the two ratios to gymnasium)"
+        )
+        print(f"{'vehicle':<32}{'CARL':>7}{'gymnasium':>11}{'CARL vs gym':>13}{'ours vs CARL':>14}")
+        for name in VEHICLES:
+            carl = carl_rates(args.steps, VEHICLE_NAMES.index(name))
+            carl_ratio = carl["carl"] / carl["gymnasium"]
+            ours_ratio = rates[f"direct {name}"] / stock
+            print(
+                f"{name:<32}{carl['carl']:>7.0f}{carl['gymnasium']:>11.0f}{carl_ratio:>13.2f}"
+                f"{ours_ratio / carl_ratio:>14.2f}"
+            )
 
     print(f"\n2. reset, ms (mean of {args.resets}; every reset builds a new track)")
     switch_ms, same_ms, stock_ms = switching(args.resets)
