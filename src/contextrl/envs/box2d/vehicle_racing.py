@@ -647,7 +647,6 @@ class VehicleRacing(HostEnv):
     def _draw(self, size: tuple[int, int], skid_marks: bool) -> np.ndarray:
         """The scene from above, following the car, at ``size``; CarRacing's drawing calls."""
         surface = self._surface
-        surface.fill((0, 0, 0))
         angle = -self.hull.angle
         zoom = 0.1 * SCALE * max(1 - self.time, 0) + ZOOM * SCALE * min(self.time, 1)
         # pygame's own rotation of (1, 0): the exact cosine and sine its Vector2.rotate_rad uses
@@ -677,10 +676,25 @@ class VehicleRacing(HostEnv):
         return np.ascontiguousarray(pygame.surfarray.array3d(scaled).transpose(1, 0, 2))
 
     def _draw_ground(self, view) -> None:
-        """Background, then the grass patches and road polygons that can reach the window."""
-        bound = PLAYFIELD
-        field = np.array([[(bound, bound), (bound, -bound), (-bound, -bound), (-bound, bound)]])
-        self._fill_polygons(view, field, [BACKGROUND_COLOR], clip=False)
+        """Background, then the grass patches and road polygons that can reach the window.
+
+        The background is the playfield square drawn over black. When the square covers the whole
+        window with a few pixels to spare (always, once the opening zoom is over and the car is not at
+        the playfield's edge), its edges fall outside and every pixel takes its colour: one fill.
+        """
+        cos_a, sin_a, zoom, shift_x, shift_y = view
+        corners = np.array(
+            [(-4, -4), (WINDOW_W + 4, -4), (-4, WINDOW_H + 4), (WINDOW_W + 4, WINDOW_H + 4)]
+        )
+        dx, dy = (corners[:, 0] - shift_x) / zoom, (corners[:, 1] - shift_y) / zoom
+        world_x, world_y = cos_a * dx + sin_a * dy, -sin_a * dx + cos_a * dy
+        if max(np.abs(world_x).max(), np.abs(world_y).max()) < PLAYFIELD:
+            self._surface.fill(BACKGROUND_COLOR)
+        else:
+            bound = PLAYFIELD
+            field = np.array([[(bound, bound), (bound, -bound), (-bound, -bound), (-bound, bound)]])
+            self._surface.fill((0, 0, 0))
+            self._fill_polygons(view, field, [BACKGROUND_COLOR], clip=False)
         self._fill_polygons(view, GRASS_POLYGONS, [GRASS_COLOR] * len(GRASS_POLYGONS), clip=True)
         self._fill_polygons(view, self.road_polygons, self.road_colors, clip=True)
 
