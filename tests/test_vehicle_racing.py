@@ -302,3 +302,23 @@ def test_make_vec_gives_each_copy_its_context():
         observations, *_ = envs.step(np.tile([0.0, 1.0, 0.0], (2, 1)).astype(np.float32))
     assert not np.array_equal(observations[0], observations[1])
     envs.close()
+
+
+def test_a_visible_context_comes_beside_the_pixels():
+    env = gymnasium.make(
+        "contextrl/VehicleRacing-v0",
+        contexts=[{"vehicle": "bus_rwd"}, {"vehicle": "tuk_tuk_rwd", "track_width": 5.0}],
+        obs_context_features="varying",
+        obs_context_as_dict=True,
+    )
+    assert env.observation_space["obs"] == gymnasium.spaces.Box(0, 255, (96, 96, 3), np.uint8)
+    first, _ = env.reset(seed=0)
+    second, _ = env.reset()
+    assert first["obs"].dtype == np.uint8 and env.observation_space.contains(second)
+    np.testing.assert_allclose(first["context"], [VEHICLE_NAMES.index("bus_rwd"), 20 / 3])
+    np.testing.assert_allclose(second["context"], [VEHICLE_NAMES.index("tuk_tuk_rwd"), 5.0])
+    flat = gymnasium.make(
+        "contextrl/VehicleRacing-v0", contexts={"vehicle": "bus_rwd"}, obs_context_features="all"
+    )
+    observation, _ = flat.reset(seed=0)
+    np.testing.assert_array_equal(observation[:-4].reshape(96, 96, 3), first["obs"])

@@ -344,6 +344,7 @@ class HostBackend:
         self.max_steps = max_steps
         self.action_space = env.action_space
         base = env.base_observation_space
+        self.base_space = base
         self.base_size = int(np.prod(base.shape))
         if (
             obs_context.hidden
