@@ -90,20 +90,29 @@ def box(left: float, bottom: float, right: float, top: float, density: float = 1
     return Polygon(((left, top), (right, top), (right, bottom), (left, bottom)), density)
 
 
-def wheels(front: tuple[float, float], rear: tuple[float, float], drive: str, **size) -> tuple:
+def wheels(
+    front: tuple[float, float],
+    rear: tuple[float, float],
+    drive: str,
+    half_width: float = 14.0,
+    brake_shares: tuple[float, float] = (1.0, 1.0),
+    steer_limit: float = 0.4,
+) -> tuple[Wheel, ...]:
     """Four wheels: the front pair steers; ``drive`` ("rwd", "fwd", "awd") picks the driven pairs."""
     (front_x, front_y), (rear_x, rear_y) = front, rear
-    front_share, rear_share = size.pop("brake_shares", (1.0, 1.0))
-    steer_limit = size.pop("steer_limit", 0.4)
     front_wheel = dict(
-        steered=True, driven=drive != "rwd", brake_share=front_share, steer_limit=steer_limit
+        half_width=half_width,
+        steered=True,
+        driven=drive != "rwd",
+        brake_share=brake_shares[0],
+        steer_limit=steer_limit,
     )
-    rear_wheel = dict(driven=drive != "fwd", brake_share=rear_share, steer_limit=0.4)
+    rear_wheel = dict(half_width=half_width, driven=drive != "fwd", brake_share=brake_shares[1])
     return (
-        Wheel(-front_x, front_y, **size, **front_wheel),
-        Wheel(+front_x, front_y, **size, **front_wheel),
-        Wheel(-rear_x, rear_y, **size, **rear_wheel),
-        Wheel(+rear_x, rear_y, **size, **rear_wheel),
+        Wheel(-front_x, front_y, **front_wheel),
+        Wheel(+front_x, front_y, **front_wheel),
+        Wheel(-rear_x, rear_y, **rear_wheel),
+        Wheel(+rear_x, rear_y, **rear_wheel),
     )
 
 
