@@ -31,6 +31,17 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
 
 
+def _make_rna(**kwargs):
+    """Build RnaDesign; ViennaRNA is imported when the first one is made, not on import."""
+    from contextrl.envs.rna import RnaDesign
+
+    return RnaDesign(**kwargs)
+
+
+if importlib.util.find_spec("RNA") is not None:  # the optional `rna` extra (viennarna)
+    register("RnaDesign", _make_rna, family="rna", aliases=("CARLRnaDesignEnv",), host=True)
+
+
 def _make_vehicle_racing(**kwargs):
     """Build VehicleRacing; Box2D and pygame are imported when the first one is made, not on import."""
     from contextrl.envs.box2d.vehicle_racing import VehicleRacing

@@ -388,7 +388,15 @@ class HostBackend:
         chosen, index, env_key_bits = self._choose(key_bits, np.int32(episode))
         context_vector = np.asarray(chosen if context is None else context, np.float32)
         index = -1 if context is not None else int(index)
-        self.context = self.space.from_array(context_vector)
+        # Built with NumPy: ``from_array``'s JAX ops would cost milliseconds per reset on the host.
+        self.context = self.space.context_class(
+            **{
+                name: np.asarray(value, feature.dtype)
+                for (name, feature), value in zip(
+                    self.space.features.items(), context_vector, strict=True
+                )
+            }
+        )
         self._episode_key = jax.random.wrap_key_data(env_key_bits)
         self._fixed_extra = None
         if not self.obs_context.hidden and self.obs_context.noise == 0:

@@ -242,8 +242,12 @@ class ContextualGymEnv(gymnasium.Env):
         return self._values_of_member[index]
 
     def _fresh_info(self) -> dict[str, Any]:
-        """A new info dict per call (users keep them; gymnasium's checker insists)."""
-        return {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
+        """A new info dict per call (users keep them; gymnasium's checker insists), with what a host
+        environment reports of its episode (``HostEnv.step_info``)."""
+        info = {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
+        if isinstance(self.backend, HostBackend):
+            info.update(self.contextrl_env.step_info())
+        return info
 
     def step(self, action):
         if self._key_bits is None:
