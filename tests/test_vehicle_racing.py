@@ -322,3 +322,16 @@ def test_a_visible_context_comes_beside_the_pixels():
     )
     observation, _ = flat.reset(seed=0)
     np.testing.assert_array_equal(observation[:-4].reshape(96, 96, 3), first["obs"])
+
+
+def test_leaving_the_playfield_ends_the_episode_as_car_racing_does():
+    env = gymnasium.make("contextrl/VehicleRacing-v0", contexts={"vehicle": "race_car_fwd"})
+    _, info = env.reset(seed=0)
+    assert "lap_finished" not in info
+    steps, terminated, truncated = 0, False, False
+    while not (terminated or truncated) and steps < 600:  # straight on at full throttle
+        _, reward, terminated, truncated, info = env.step(np.array([0.0, 1.0, 0.0], np.float32))
+        steps += 1
+    assert terminated and not truncated and steps > 50
+    assert reward == -100.0 and info["lap_finished"] is False
+    assert max(map(abs, env.unwrapped.contextrl_env.hull.position)) > 2000 / 6

@@ -323,6 +323,7 @@ class VehicleRacing(HostEnv):
         self.world = Box2D.b2World((0, 0), contactListener=TileContacts(self))
         self.track: list | None = None
         self.vehicle: Vehicle | None = None
+        self.outcome: dict[str, bool] = {}
         # Fixture definitions are reused: pybox2d never frees one (a leak of ~300 bytes each).
         self._tile_fixture = fixtureDef(
             shape=polygonShape(vertices=[(0, 0), (1, 0), (1, -1), (0, -1)]), isSensor=True
@@ -339,13 +340,14 @@ class VehicleRacing(HostEnv):
         return self._observation_space
 
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:
-        vehicle_index, turn_rate, width, checkpoint_count = self.context_values(context)
+        vehicle_index, turn_rate, width, checkpoint_count = self.episode_values(context)
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"{self.name}: rng must be a numpy.random.Generator, got {rng!r}")
         self.vehicle = GARAGE[vehicle_index]
         self.turn_rate, self.track_width = turn_rate, width
         self._clear_world()
         self.reward = self.previous_reward = 0.0
+        self.outcome: dict[str, bool] = {}
         self.visited_count = 0
         self.time = 0.0
         self.new_lap = False
@@ -366,6 +368,10 @@ class VehicleRacing(HostEnv):
             raise RuntimeError(f"{self.name}: call reset_physics before step_physics")
         return self._advance(self._check_action(action))
 
+    def step_info(self) -> dict[str, bool]:
+        """CarRacing's ``info["lap_finished"]`` when an episode has just ended, else nothing."""
+        return dict(self.outcome)
+
     def render_frame(self) -> np.ndarray:
         if self.track is None:
             raise RuntimeError(f"{self.name}: call reset_physics before render_frame")
@@ -382,23 +388,26 @@ class VehicleRacing(HostEnv):
         self.tiles = self.wheels = self.bodies = self.joints = ()
 
     # ---- context -----------------------------------------------------------------------------------
-    def context_values(self, context: Any) -> tuple[int, float, float, int]:
-        """``(vehicle index, turn rate, width, checkpoints)``, every feature checked first."""
-        if not isinstance(context, self.context_type):
-            raise ContextError(
-                f"{self.name}: expected a {self.context_type.__name__}, got {type(context).__name__}"
-            )
-        values = []
-        for name, spec in self.context_space.features.items():
-            value = spec.coerce(np.asarray(getattr(context, name)))
-            if value.ndim != 0:
+    def episode_values(self, context: Any) -> tuple[int, float, float, int]:
+        """``(vehicle index, turn rate, width, checkpoints)`` of a checked context.
+
+        A context holds float32: where it holds the rounding of a default, CarRacing's exact constant
+        is used, so the default context is CarRacing bit for bit.
+        """
+        values = self.context_values(context)
+        for name, declared in self.context_space.features.items():
+            if declared.kind != "float" and not values[name].is_integer():
                 raise ContextError(
-                    f"{self.name}: {name} must be one value per episode, got shape {value.shape}"
+                    f"{name}: expected an integer ({declared.kind}), got {values[name]}"
                 )
-            # A context holds float32: its rounding of a default means CarRacing's exact constant.
-            values.append(spec.default if value == np.float32(spec.default) else value.item())
-        vehicle, turn_rate, width, checkpoint_count = values
-        return int(vehicle), float(turn_rate), float(width), int(checkpoint_count)
+            if np.float32(values[name]) == np.float32(declared.default):
+                values[name] = declared.default
+        return (
+            int(values["vehicle"]),
+            float(values["track_turn_rate"]),
+            float(values["track_width"]),
+            int(values["checkpoints"]),
+        )
 
     def _check_action(self, action):
         if self.continuous:
@@ -638,9 +647,12 @@ class VehicleRacing(HostEnv):
         step_reward = self.reward - self.previous_reward
         self.previous_reward = self.reward
         terminated = self.visited_count == len(self.track) or self.new_lap
+        if terminated:
+            self.outcome = {"lap_finished": True}
         x, y = self.hull.position
         if abs(x) > PLAYFIELD or abs(y) > PLAYFIELD:
             terminated, step_reward = True, -100.0
+            self.outcome = {"lap_finished": False}
         return observation, float(step_reward), bool(terminated)
 
     # ---- drawing -----------------------------------------------------------------------------------
