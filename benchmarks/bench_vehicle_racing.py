@@ -46,7 +46,7 @@ carl = CARLVehicleRacing(contexts={0: context})
 stock = CarRacing()
 carl.reset(seed=0)
 stock.reset(seed=0)
-# float64: CARL's street cars and buses raise a TypeError in Box2D for float32 actions
+# float64: with box2d 2.3.10 every CARL vehicle raises a TypeError for float32 actions
 actions = np.random.default_rng(0).uniform([-1, 0, 0], [1, 1, 1], (steps, 3))
 seconds = [0.0, 0.0]
 for start in range(0, steps, block):
