@@ -40,3 +40,20 @@ def _make_rna(**kwargs):
 
 if importlib.util.find_spec("RNA") is not None:  # the optional `rna` extra (viennarna)
     register("RnaDesign", _make_rna, family="rna", aliases=("CARLRnaDesignEnv",), host=True)
+
+
+def _make_vehicle_racing(**kwargs):
+    """Build VehicleRacing; Box2D and pygame are imported when the first one is made, not on import."""
+    from contextrl.envs.box2d.vehicle_racing import VehicleRacing
+
+    return VehicleRacing(**kwargs)
+
+
+if importlib.util.find_spec("Box2D") is not None and importlib.util.find_spec("pygame") is not None:
+    register(
+        "VehicleRacing",
+        _make_vehicle_racing,
+        family="box2d",
+        aliases=("CARLVehicleRacing",),
+        host=True,
+    )

@@ -3,3 +3,14 @@
 Every context value is held by the environment instance: no module global of gymnasium's Box2D modules is
 read or written, so two instances with different contexts in one process stay isolated.
 """
+
+from contextrl.envs.box2d.garage import GARAGE, VEHICLE_NAMES, Vehicle
+from contextrl.envs.box2d.vehicle_racing import VehicleRacing, VehicleRacingContext
+
+__all__ = [
+    "GARAGE",
+    "VEHICLE_NAMES",
+    "Vehicle",
+    "VehicleRacing",
+    "VehicleRacingContext",
+]
