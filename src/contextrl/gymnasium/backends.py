@@ -347,14 +347,20 @@ class HostBackend:
             bounds = (self.action_space.low, self.action_space.high)
             self._action_bounds = tuple(bound.ravel().tolist() for bound in bounds)
         base = env.base_observation_space
+        self.base_space = base
         self.base_size = int(np.prod(base.shape))
-        low, high = obs_context.bounds(self.space) if not obs_context.hidden else ([], [])
-        self.flat_space = gymnasium.spaces.Box(
-            np.concatenate([np.ravel(base.low), low]).astype(np.float32),
-            np.concatenate([np.ravel(base.high), high]).astype(np.float32),
-            dtype=np.float32,
-        )
-        self.obs_size = self.flat_space.shape[0]
+        if (
+            obs_context.hidden
+        ):  # the original observation as it is (pixels keep their shape and dtype)
+            self.flat_space = base
+        else:
+            low, high = obs_context.bounds(self.space)
+            self.flat_space = gymnasium.spaces.Box(
+                np.concatenate([np.ravel(base.low), low]).astype(np.float32),
+                np.concatenate([np.ravel(base.high), high]).astype(np.float32),
+                dtype=np.float32,
+            )
+        self.obs_size = int(np.prod(self.flat_space.shape))
         self.table = on_cpu(schedule.table)
         self._choose = cpu_jit(self._choose_fn)
         self._values = cpu_jit(lambda context, key: obs_context.values(self.space, context, key))
@@ -369,9 +375,9 @@ class HostBackend:
         return context_vector, index, jax.random.key_data(env_key)
 
     def _observation(self, base_obs) -> np.ndarray:
-        base_obs = np.asarray(base_obs, np.float32).ravel()
         if self.obs_context.hidden:
-            return base_obs
+            return np.asarray(base_obs, self.flat_space.dtype)
+        base_obs = np.asarray(base_obs, np.float32).ravel()
         if self._fixed_extra is not None:
             extra = self._fixed_extra
         else:
