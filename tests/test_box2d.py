@@ -438,3 +438,22 @@ def test_frames_show_the_context_and_the_cli_renders_the_family(tmp_path):
         == 0
     )
     assert out.stat().st_size > 0
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="reads Linux's /proc")
+def test_resets_do_not_leak_memory():
+    """pybox2d never frees a fixture definition; the environments reuse theirs (a definition per
+    reset leaked about 1.6 kB per LunarLander reset and 0.9 kB per BipedalWalker reset)."""
+    import os
+
+    def resident() -> int:
+        return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+    for env, resets in ((LunarLander(), 1500), (BipedalWalker(), 1000)):
+        context, rng = env.context(SCALE=25.0), np.random.default_rng(0)
+        for _ in range(100):
+            env.reset_physics(context, rng)
+        before = resident()
+        for _ in range(resets):
+            env.reset_physics(context, rng)
+        assert resident() - before < 400_000, env.name

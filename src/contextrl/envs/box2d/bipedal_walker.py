@@ -238,7 +238,29 @@ class BipedalWalker(Box2DEnv):
         self.joints: list = []
         self.foot_contact = [False] * 4
         self.game_over = False
+        # Definitions made once and reused: pybox2d never frees a fixture definition (about 0.3 kB
+        # each), so definitions made at every reset would leak.
         self._ground = b2BodyDef()  # static, at the origin
+        self._hull = fixtureDef(
+            shape=polygonShape(box=(1, 1)),
+            density=5.0,
+            friction=0.1,
+            categoryBits=0x0020,
+            maskBits=0x001,  # collides only with the ground
+            restitution=0.0,
+            userData=WALKER,
+        )
+        self._thigh, self._shin = (
+            fixtureDef(
+                shape=polygonShape(box=(1, 1)),
+                density=1.0,
+                restitution=0.0,
+                categoryBits=0x0020,
+                maskBits=0x001,
+                userData=WALKER,
+            )
+            for _ in range(2)
+        )
         self._edge = fixtureDef(shape=edgeShape(vertices=[(0, 0), (1, 1)]), categoryBits=0x0001)
         square = [(0, 0), (1, 0), (1, -1), (0, -1)]
         self._block = fixtureDef(shape=polygonShape(vertices=square), categoryBits=0x0001)
@@ -383,22 +405,13 @@ class BipedalWalker(Box2DEnv):
         torque = v["MOTORS_TORQUE"]
         x = v["TERRAIN_STEP"] * v["TERRAIN_STARTPAD"] / 2
         y = v["TERRAIN_HEIGHT"] + 2 * leg_h
-        self.hull = self.world.CreateDynamicBody(
-            position=(x, y),
-            fixtures=fixtureDef(
-                shape=polygonShape(vertices=[(px / scale, py / scale) for px, py in HULL_POLYGON]),
-                density=5.0,
-                friction=0.1,
-                categoryBits=0x0020,
-                maskBits=0x001,  # collides only with the ground
-                restitution=0.0,
-                userData=WALKER,
-            ),
-        )
+        self._hull.shape.vertices = [(px / scale, py / scale) for px, py in HULL_POLYGON]
+        self.hull = self.world.CreateDynamicBody(position=(x, y), fixtures=self._hull)
         push = v["INITIAL_RANDOM"]
         self.hull.ApplyForceToCenter((rng.uniform(-push, push), 0), True)
-        upper = polygonShape(box=(leg_w / 2, leg_h / 2))
-        lower = polygonShape(box=(0.8 * leg_w / 2, leg_h / 2))
+        upper, lower = self._thigh, self._shin
+        upper.shape.box = (leg_w / 2, leg_h / 2)
+        lower.shape.box = (0.8 * leg_w / 2, leg_h / 2)
         for side in (-1, +1):
             thigh = self._limb(upper, (x, y - leg_h / 2 - leg_down), side)
             hip = revoluteJointDef(
@@ -430,18 +443,9 @@ class BipedalWalker(Box2DEnv):
             self.joints.append(self.world.CreateJoint(knee))
         self.foot_contact = [False] * 4
 
-    def _limb(self, shape, position: tuple[float, float], side: int):
+    def _limb(self, definition, position: tuple[float, float], side: int):
         limb = self.world.CreateDynamicBody(
-            position=position,
-            angle=side * 0.05,
-            fixtures=fixtureDef(
-                shape=shape,
-                density=1.0,
-                restitution=0.0,
-                categoryBits=0x0020,
-                maskBits=0x001,
-                userData=WALKER,
-            ),
+            position=position, angle=side * 0.05, fixtures=definition
         )
         self.legs.append(limb)
         return limb

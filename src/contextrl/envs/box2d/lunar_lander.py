@@ -31,7 +31,14 @@ from typing import Any
 import Box2D
 import gymnasium
 import numpy as np
-from Box2D.b2 import contactListener, edgeShape, fixtureDef, polygonShape, revoluteJointDef
+from Box2D.b2 import (
+    bodyDef,
+    contactListener,
+    edgeShape,
+    fixtureDef,
+    polygonShape,
+    revoluteJointDef,
+)
 
 from contextrl.context.features import ContextBase, context_type, feature
 from contextrl.envs.box2d.base import Box2DEnv, paint_body
@@ -159,6 +166,25 @@ class LunarLander(Box2DEnv):
             np.concatenate([unbounded, [1.0, 1.0]]).astype(np.float32),
             dtype=np.float32,
         )
+        # Definitions made once and reused: pybox2d never frees a fixture definition (about 0.3 kB
+        # each), so definitions made at every reset would leak.
+        self._static = bodyDef()
+        self._edge = fixtureDef(shape=edgeShape(vertices=[(0, 0), (1, 0)]), density=0.0)
+        self._hull = fixtureDef(
+            shape=polygonShape(box=(1, 1)),
+            density=5.0,
+            friction=0.1,
+            categoryBits=0x0010,
+            maskBits=0x001,  # collides only with the ground
+            restitution=0.0,
+        )
+        self._leg = fixtureDef(
+            shape=polygonShape(box=(1, 1)),
+            density=1.0,
+            restitution=0.0,
+            categoryBits=0x0020,
+            maskBits=0x001,
+        )
         self.world = None
         self.lander = None
         self.legs: tuple = ()
@@ -206,47 +232,35 @@ class LunarLander(Box2DEnv):
         smooth = [
             0.33 * (heights[i - 1] + heights[i + 0] + heights[i + 1]) for i in range(TERRAIN_CHUNKS)
         ]
-        self.moon = self.world.CreateStaticBody(shapes=edgeShape(vertices=[(0, 0), (width, 0)]))
+        self.moon = self.world.CreateBody(self._static)
+        edge = self._edge
+        edge.shape.vertices, edge.friction = [(0, 0), (width, 0)], 0.2  # the floor: Box2D's default
+        self.moon.CreateFixture(edge)
+        edge.friction = 0.1
         self.sky: list[list[tuple[float, float]]] = []
         for i in range(TERRAIN_CHUNKS - 1):
             left, right = (chunk_x[i], smooth[i]), (chunk_x[i + 1], smooth[i + 1])
-            self.moon.CreateEdgeFixture(vertices=[left, right], density=0, friction=0.1)
+            edge.shape.vertices = [left, right]
+            self.moon.CreateFixture(edge)
             self.sky.append([left, right, (right[0], height), (left[0], height)])
 
     def _build_lander(self, x: float, y: float) -> None:
         v, rng = self._values, self._rng
         scale = v["SCALE"]
-        self.lander = self.world.CreateDynamicBody(
-            position=(x, y),
-            angle=0.0,
-            fixtures=fixtureDef(
-                shape=polygonShape(
-                    vertices=[(px / scale, py / scale) for px, py in LANDER_POLYGON]
-                ),
-                density=5.0,
-                friction=0.1,
-                categoryBits=0x0010,
-                maskBits=0x001,  # collides only with the ground
-                restitution=0.0,
-            ),
-        )
+        self._hull.shape.vertices = [(px / scale, py / scale) for px, py in LANDER_POLYGON]
+        self.lander = self.world.CreateDynamicBody(position=(x, y), angle=0.0, fixtures=self._hull)
         push = v["INITIAL_RANDOM"]
         self.lander.ApplyForceToCenter((rng.uniform(-push, push), rng.uniform(-push, push)), True)
         if self._wind:  # phases of the wind and turbulence signals
             self._wind_index = int(rng.integers(-9999, 9999))
             self._torque_index = int(rng.integers(-9999, 9999))
         legs = []
+        self._leg.shape.box = (v["LEG_W"] / scale, v["LEG_H"] / scale)
         for side in (-1, +1):
             leg = self.world.CreateDynamicBody(
                 position=(x - side * v["LEG_AWAY"] / scale, y),
                 angle=side * 0.05,
-                fixtures=fixtureDef(
-                    shape=polygonShape(box=(v["LEG_W"] / scale, v["LEG_H"] / scale)),
-                    density=1.0,
-                    restitution=0.0,
-                    categoryBits=0x0020,
-                    maskBits=0x001,
-                ),
+                fixtures=self._leg,
             )
             hinge = revoluteJointDef(
                 bodyA=self.lander,
