@@ -365,7 +365,10 @@ def report_command(args: argparse.Namespace) -> int:
         if len(args.run_dir) > 1:
             from contextrl.experiments.compare import compare_runs
 
-            path = compare_runs(args.run_dir, args.out or "comparison.html")
+            out = Path(args.out or "comparison.html")
+            if out.suffix.lower() not in (".html", ".htm"):
+                raise SpecError(f"--out {out}: the comparison is an HTML report; name it *.html")
+            path = compare_runs(args.run_dir, out)
         else:
             if args.out:
                 raise SpecError(
