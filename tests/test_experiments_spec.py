@@ -158,14 +158,16 @@ def test_example_specs_are_valid():
 
 def test_agent_without_a_host_loop_is_refused_on_a_host_environment():
     import contextrl as crl
+    from contextrl.agents import Agent, ppo, register_agent
 
     host = [i for i in crl.registered() if crl.spec(i).host]
     if not host:
         pytest.skip("no host environment registered (dm_control not installed)")
-    with pytest.raises(
-        SpecError, match="dqn agent has no host training loop.*'ppo', 'random', 'sac'"
-    ):
-        prepare({"protocol": "visibility", "env": host[0], "agent": "dqn"})
+    register_agent(
+        Agent("jax_only_ppo", ppo.PPOConfig, ppo.make_train, ppo.make_policy), replace=True
+    )
+    with pytest.raises(SpecError, match="jax_only_ppo agent has no host training loop.*'ppo'"):
+        prepare({"protocol": "visibility", "env": host[0], "agent": "jax_only_ppo"})
 
 
 def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):

@@ -168,7 +168,16 @@ register_agent(
     )
 )
 register_agent(
-    Agent("dqn", dqn.DQNConfig, dqn.make_train, dqn.make_policy, actions=("discrete",), doc="DQN")
+    Agent(
+        "dqn",
+        dqn.DQNConfig,
+        dqn.make_train,
+        dqn.make_policy,
+        actions=("discrete",),
+        doc="DQN",
+        train_host=dqn.train_gymnasium,
+        make_host_policy=dqn.make_host_policy,
+    )
 )
 register_agent(
     Agent(
@@ -179,6 +188,8 @@ register_agent(
         defaults=_c51_defaults,
         actions=("discrete",),
         doc="C51 (distributional DQN; the paper's settings where it has them)",
+        train_host=dqn.train_gymnasium,
+        make_host_policy=dqn.make_host_policy,
     )
 )
 register_agent(

@@ -43,10 +43,12 @@ def _first(contexts, n: int):
     return jax.tree_util.tree_map(lambda leaf: leaf[:n], contexts)
 
 
-def _compiled(spec, variant: str, env, template):
+def _compiled(spec, variant: str, env, template, tested_on_training: bool):
     """The jitted, vmapped train-and-evaluate function; chunks of the same shape share one compile.
 
     Only the structure of ``template`` matters (its size and which features vary), so it is the key.
+    ``tested_on_training``: the test set is the training set (optimality gap), so the trained
+    policy's return there is read from the test returns instead of evaluated twice.
     """
     agent = spec.agent_entry()
     key = (
@@ -56,6 +58,7 @@ def _compiled(spec, variant: str, env, template):
         repr(sorted(spec.agent_options.items())),
         spec.eval_episodes,
         variant if agent.trained else "",  # an untrained policy ignores the context input
+        tested_on_training,
         len(template),
         env.context_space.varying(template) if len(template) > 1 else (),
     )
@@ -79,7 +82,10 @@ def _compiled(spec, variant: str, env, template):
             curve = result.metrics["episode_return"]
         returns = evaluate(policy, params, env, test_ctx, episodes, eval_key)
         own = _first(train_ctx, TRAIN_EVAL_CONTEXTS)
-        trained = evaluate(policy, params, env, own, episodes, train_eval_key).mean()
+        if tested_on_training:
+            trained = returns[:TRAIN_EVAL_CONTEXTS].mean()
+        else:
+            trained = evaluate(policy, params, env, own, episodes, train_eval_key).mean()
         random = evaluate(random_policy, None, env, own, episodes, train_eval_key).mean()
         return returns, steps, curve, params, trained, random
 
@@ -87,10 +93,10 @@ def _compiled(spec, variant: str, env, template):
     return _COMPILED[key]
 
 
-def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_batch):
+def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_batch, same):
     """(returns (trials × test contexts), curve steps, curves (trials × points), per-trial params,
     per-trial (trained, random) mean return on the training contexts)."""
-    function = _compiled(spec, variant, env, template)
+    function = _compiled(spec, variant, env, template, same)
     returns, steps, curves, params, trained, random = function(keys, train_batch, test_batch)
     params = jax.device_get(params)
     per_trial = [
@@ -199,8 +205,9 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
     else:
         train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
         test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
+        same = all(t.test_set == t.train_set for t in trials)
         returns, steps, curves, params, own = _train_and_evaluate(
-            spec, trials[0].variant, env, template, keys, train_batch, test_batch
+            spec, trials[0].variant, env, template, keys, train_batch, test_batch, same
         )
     seconds = time.perf_counter() - start
     space = env.context_space
