@@ -80,8 +80,19 @@ class SensitivitySpec(CommonSpec):
     vary_field = None  # --vary names the features to scale
 
     @classmethod
-    def vary(cls, data: dict, items: list[str]) -> None:
-        data["features"] = list(items)
+    def vary(cls, data: dict, items: list[str]) -> str | None:
+        """``--vary g --vary l`` names the features to scale, added to those a config names."""
+        existing = data.get("features")
+        if not isinstance(existing, (list, tuple)) or not existing:
+            data["features"] = list(items)  # replaces "all"
+            return None
+        data["features"] = list(dict.fromkeys([*existing, *items]))
+        kept = [name for name in existing if name not in items]
+        return (
+            f"--vary: features keeps {kept} from the config; now {data['features']}"
+            if kept
+            else None
+        )
 
     def expand(self) -> tuple[dict, list]:
         return _expand(self)
