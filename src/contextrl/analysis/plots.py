@@ -82,17 +82,20 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
 
 
 def training_curves(
-    steps: Sequence[float],
+    steps: Sequence[float] | Mapping[str, Sequence[float]],
     curves_by_label: Mapping[str, np.ndarray],
     title: str = "",
     seed: int = 0,
 ):
-    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points)."""
+    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points).
+
+    ``steps`` is shared, or a mapping label → steps for curves logged at different steps."""
     figure, axis = plt.subplots(figsize=(5.5, 3.5))
     for label, curves in curves_by_label.items():
+        x = steps[label] if isinstance(steps, Mapping) else steps
         mean, low, high = curve_band(curves, seed=seed)
-        (line,) = axis.plot(steps, mean, label=str(label))
-        axis.fill_between(steps, low, high, color=line.get_color(), alpha=0.25)
+        (line,) = axis.plot(x, mean, label=str(label))
+        axis.fill_between(x, low, high, color=line.get_color(), alpha=0.25)
     axis.set(xlabel="environment steps", ylabel="episode return", title=title)
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)

@@ -113,9 +113,11 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
                 )
             )
     if curve_frames:
-        steps, by_label = curves_by_label(
-            pd.concat(curve_frames, ignore_index=True), lambda frame: frame["overlay"]
-        )
+        steps, by_label = {}, {}
+        for frame in curve_frames:  # each run on its own steps (budgets may differ)
+            run_steps, lines = curves_by_label(frame, lambda f: f["overlay"])
+            by_label.update(lines)
+            steps.update(dict.fromkeys(lines, run_steps))
         figures.append(
             figure(
                 "compare-training",
