@@ -13,7 +13,7 @@ from contextrl.experiments import (
     run_experiment,
     spec_to_dict,
 )
-from contextrl.experiments.protocols import REGIONS, region_of, train_test_contexts
+from contextrl.experiments.train_test import REGIONS, region_of, train_test_contexts
 
 BAD_SPECS = [
     ({"protocol": "nope"}, "unknown protocol 'nope'"),
@@ -145,14 +145,18 @@ def test_example_specs_are_valid():
         assert spec.protocol in file.stem.replace("-", "_") or spec.protocol == "tabular"
 
 
-def test_host_environment_is_refused():
+def test_agent_without_a_host_loop_is_refused_on_a_host_environment():
     import contextrl as crl
+    from contextrl.agents import Agent, ppo, register_agent
 
     host = [i for i in crl.registered() if crl.spec(i).host]
     if not host:
         pytest.skip("no host environment registered (dm_control not installed)")
-    with pytest.raises(SpecError, match="host environment"):
-        prepare({"protocol": "visibility", "env": host[0]})
+    register_agent(
+        Agent("jax_only_ppo", ppo.PPOConfig, ppo.make_train, ppo.make_policy), replace=True
+    )
+    with pytest.raises(SpecError, match="jax_only_ppo agent has no host training loop.*'ppo'"):
+        prepare({"protocol": "visibility", "env": host[0], "agent": "jax_only_ppo"})
 
 
 def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):

@@ -139,8 +139,18 @@ def heatmap(
     vmin: float | None = None,
     vmax: float | None = None,
 ):
-    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red."""
+    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red.
+
+    ``vmin``/``vmax`` fix the colour scale (to share it between panels); by default it spans the
+    values, whatever their sign. Equal limits are widened by ½ so a constant plane still has a scale.
+    """
     x, y, values = (np.asarray(a, dtype=float).ravel() for a in (x, y, values))
+    vmin = float(np.nanmin(values)) if vmin is None else float(vmin)
+    vmax = float(np.nanmax(values)) if vmax is None else float(vmax)
+    if not vmin <= vmax:
+        raise ValueError(f"heatmap: vmin ({vmin:g}) must not exceed vmax ({vmax:g})")
+    if vmin == vmax:
+        vmin, vmax = vmin - 0.5, vmax + 0.5
     xedges = np.linspace(x.min(), x.max(), bins + 1)
     yedges = np.linspace(y.min(), y.max(), bins + 1)
     total, _, _ = np.histogram2d(x, y, bins=(xedges, yedges), weights=values)
@@ -161,6 +171,26 @@ def heatmap(
         axis.scatter(points[:, 0], points[:, 1], s=6, color="red", alpha=0.5, label="train")
         axis.legend(fontsize="small", loc="upper right")
     axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    return figure
+
+
+def schedules(
+    panels: Mapping[str, Mapping[str, tuple[Sequence[float], Sequence[float]]]], xlabel: str = ""
+):
+    """A panel per quantity (a hyper-parameter, the return), one step line per member over time."""
+    names = list(panels)
+    columns = min(3, len(names))
+    rows = -(-len(names) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.0 * rows), squeeze=False)
+    for axis, name in zip(axes.ravel(), names, strict=False):
+        for label, (x, y) in panels[name].items():
+            axis.step(np.asarray(x), np.asarray(y), where="post", label=str(label), alpha=0.8)
+        axis.set(xlabel=xlabel, title=name)
+        axis.grid(alpha=0.3)
+    for axis in axes.ravel()[len(names) :]:
+        axis.set_visible(False)
+    axes.ravel()[0].legend(fontsize="x-small")
+    figure.tight_layout()
     return figure
 
 

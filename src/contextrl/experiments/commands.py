@@ -13,8 +13,9 @@ from typing import Any
 
 import yaml
 
+from contextrl.agents import registered_agents
 from contextrl.experiments.runner import report, resume, run_experiment
-from contextrl.experiments.spec import PROTOCOLS, SpecError, parse_distribution
+from contextrl.experiments.spec import SPECS, SpecError, parse_distribution
 
 # The main job: CartPole with the pole length varied, hidden vs concat agents, a train/test split with
 # held-out and longer/shorter poles; a few minutes on 2 CPU cores.
@@ -52,20 +53,15 @@ def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
         data = {
             k: v.copy() if isinstance(v, dict) else v for k, v in PRESETS[args.protocol].items()
         }
-    elif args.protocol in PROTOCOLS:
+    elif args.protocol in SPECS:
         data = {"protocol": args.protocol}
     else:
-        raise SpecError(
-            f"unknown protocol {args.protocol!r}; choose one of {[*PRESETS, *PROTOCOLS]}"
-        )
+        raise SpecError(f"unknown protocol {args.protocol!r}; choose one of {[*PRESETS, *SPECS]}")
     if args.config:
         loaded = yaml.safe_load(Path(args.config).read_text(encoding="utf-8"))
         if not isinstance(loaded, dict):
             raise SpecError(f"--config {args.config}: expected a YAML mapping of spec fields")
-        if (
-            loaded.get("protocol", data["protocol"]) != data["protocol"]
-            and args.protocol in PROTOCOLS
-        ):
+        if loaded.get("protocol", data["protocol"]) != data["protocol"] and args.protocol in SPECS:
             raise SpecError(
                 f"--config {args.config} is a {loaded['protocol']} spec, not {args.protocol}"
             )
@@ -83,22 +79,21 @@ def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.variants:
         data["variants"] = args.variants.split(",")
     options = dict(data.get("agent_options") or {})
+    if args.agent_config:
+        loaded = yaml.safe_load(Path(args.agent_config).read_text(encoding="utf-8"))
+        if not isinstance(loaded, dict):
+            raise SpecError(
+                f"--agent-config {args.agent_config}: expected a YAML mapping of agent options "
+                "(as written by contextrl run hpo)"
+            )
+        options.update(loaded)
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
     options.update(_assignments(args.agent_option, "--agent-option"))
     if options:
         data["agent_options"] = options
     if args.vary:
-        field = "train_box" if data["protocol"] == "train_test" else "train"
-        if data["protocol"] == "sensitivity":
-            data["features"] = list(args.vary)
-        elif field == "train_box":
-            data[field] = _assignments(args.vary, "--vary")
-        else:
-            data[field] = {
-                name: parse_distribution(name, value)
-                for name, value in (v.partition("=")[::2] for v in args.vary)
-            }
+        SPECS[data["protocol"]].vary(data, args.vary)
     if args.test:
         data["test"] = {
             name: parse_distribution(name, value)
@@ -149,13 +144,13 @@ def add_run(subparsers) -> None:
     parser = subparsers.add_parser(
         "run",
         help="run an experiment protocol and write a run directory with a report",
-        description="Protocols: " + ", ".join([*PRESETS, *PROTOCOLS]) + ". Options override "
+        description="Protocols: " + ", ".join([*PRESETS, *SPECS]) + ". Options override "
         "--config, which overrides the protocol's defaults.",
     )
-    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *PROTOCOLS]}")
+    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *SPECS]}")
     parser.add_argument("--config", help="a YAML spec (see examples/*.yaml)")
     parser.add_argument("--env", help="environment id (contextrl list)")
-    parser.add_argument("--agent", help="ppo, dqn, c51 or random")
+    parser.add_argument("--agent", help=f"a registered agent: {registered_agents()}")
     parser.add_argument(
         "--variants", help="comma-separated: hidden,concat_all,concat_varying,gated"
     )
@@ -179,6 +174,11 @@ def add_run(subparsers) -> None:
         "--agent-option", action="append", default=[], metavar="KEY=VALUE", help="agent config"
     )
     parser.add_argument(
+        "--agent-config",
+        metavar="YAML",
+        help="agent options from a file, e.g. the best.yaml of an hpo run (--agent-option wins)",
+    )
+    parser.add_argument(
         "--set",
         action="append",
         default=[],
@@ -190,7 +190,9 @@ def add_run(subparsers) -> None:
     parser.add_argument("--root", default="runs", help="where new run directories go")
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
     parser.add_argument("--executor", default="local", help="local or ray")
-    parser.add_argument("--address", help="Ray cluster address (default: start a local one)")
+    parser.add_argument(
+        "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
+    )
     parser.add_argument("--max-chunks", type=int, help="stop after this many chunks (resume later)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(handler=run_command)

@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir
-from contextrl.experiments.spec import parse_spec, spec_to_dict
+from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
 
 EXECUTORS = ("local", "ray")
@@ -141,3 +141,30 @@ def run_ray(
         report(chunk, True)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+
+def run_chunks(
+    run: RunDir,
+    plan: Plan,
+    *,
+    executor: str = "local",
+    address: str | None = None,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    save_params: bool = True,
+) -> Summary:
+    """Run the plan's unfinished chunks with the named executor."""
+    if executor == "ray":
+        return run_ray(
+            run,
+            plan,
+            address=address,
+            max_chunks=max_chunks,
+            progress=progress,
+            save_params=save_params,
+        )
+    if executor == "local":
+        return run_local(
+            run, plan, max_chunks=max_chunks, progress=progress, save_params=save_params
+        )
+    raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")

@@ -6,6 +6,7 @@ Layout of ``runs/<name>-<time>/``::
     manifest.json        versions, seeds, plan size, start time
     results/chunk-0003.parquet    evaluation rows of the trials of chunk 3
     curves/chunk-0003.parquet     their training curves
+    training/chunk-0003.parquet   their return on their training contexts, and a random policy's
     checkpoints/<trial>.npz       trained parameters
     failures/chunk-0003.json      error and traceback of a chunk that raised
     timings.json         seconds per finished chunk
@@ -143,12 +144,17 @@ class RunDir:
                     )
         if len(result.curves):
             write_parquet(self.path / "curves" / f"chunk-{chunk:04d}.parquet", result.curves)
-        timings = self.timings()
-        timings[str(chunk)] = result.seconds
-        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
+        if len(result.training):
+            write_parquet(self.path / "training" / f"chunk-{chunk:04d}.parquet", result.training)
+        self.record_timing(chunk, result.seconds)
         with contextlib.suppress(FileNotFoundError):
             (self.path / "failures" / f"chunk-{chunk:04d}.json").unlink()
         write_parquet(self.result_path(chunk), result.evaluations)
+
+    def record_timing(self, chunk: int, seconds: float) -> None:
+        timings = self.timings()
+        timings[str(chunk)] = seconds
+        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
 
     def record_failure(self, chunk: int, trial_ids: list[str], error: str, traceback: str) -> None:
         record = {"chunk": chunk, "trials": trial_ids, "error": error, "traceback": traceback}
@@ -177,6 +183,11 @@ class RunDir:
         if frame.empty:
             return frame
         return frame.sort_values(["trial", "test_set", "context_index"], ignore_index=True)
+
+    def training(self) -> pd.DataFrame:
+        """Per trial: return on its training contexts and a random policy's on the same contexts."""
+        frame = self._read("training")
+        return frame if frame.empty else frame.sort_values("trial", ignore_index=True)
 
     def curves(self) -> pd.DataFrame:
         frame = self._read("curves")

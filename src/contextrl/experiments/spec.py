@@ -1,5 +1,10 @@
 """Experiment specs: one typed, frozen dataclass per protocol, parsed from YAML/dicts and validated.
 
+A protocol *is* its spec class: each protocol module (sensitivity, optimality_gap, visibility,
+train_test, tabular, hpo) subclasses :class:`CommonSpec`, registers it with :func:`register_protocol`
+and implements how it expands into trials, how it runs (chunks of trials by default) and which report
+sections it contributes; nothing else in the package names a protocol.
+
 Every check runs before anything is trained: an unknown environment, feature, agent, visibility
 variant or key, an empty distribution, an empty or overlapping train/test split all raise
 :class:`SpecError` naming the field, the value and the valid choices.
@@ -11,7 +16,7 @@ import dataclasses
 import math
 import typing
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, ClassVar
 
 from contextrl.context.distributions import (
     Categorical,
@@ -25,8 +30,6 @@ from contextrl.context.distributions import (
 )
 from contextrl.context.features import ContextError
 
-PROTOCOLS = ("sensitivity", "optimality_gap", "visibility", "train_test", "tabular")
-AGENTS = ("ppo", "dqn", "c51", "random")
 VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")
 DISTRIBUTION_NAMES = {
     "uniform": Uniform,
@@ -41,6 +44,9 @@ DISTRIBUTION_NAMES = {
 
 class SpecError(ValueError):
     """An invalid experiment spec; raised before anything runs."""
+
+
+_HOST_ENVS: dict[str, Any] = {}
 
 
 def parse_distribution(feature: str, value: Any):
@@ -103,6 +109,9 @@ class CommonSpec:
     batch_size: int = 16  # trials trained together in one vmapped call (one chunk)
     bootstrap_reps: int = 2000
 
+    trains_agents: ClassVar[bool] = True  # False: the protocol has no agent, env or variants
+    vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
+
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
         _check_int("seed", self.seed, 0)
@@ -111,10 +120,8 @@ class CommonSpec:
         _check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
             _check_int("max_steps", self.max_steps, 1)
-        if self.protocol == "tabular":
+        if not self.trains_agents:
             return
-        if self.agent not in AGENTS:
-            raise SpecError(f"agent: unknown agent {self.agent!r}; choose one of {list(AGENTS)}")
         if not isinstance(self.agent_options, Mapping):
             raise SpecError(f"agent_options must be a mapping, got {self.agent_options!r}")
         if not self.variants:
@@ -126,24 +133,95 @@ class CommonSpec:
                 )
         if len(set(self.variants)) != len(self.variants):
             raise SpecError(f"variants: {list(self.variants)} repeats a variant")
-        self.make_env()
+        env = self.make_env()
+        agent = self.agent_entry()
+        from contextrl.agents import ConfigError
 
-    def make_env(self):
-        """The environment (hidden observation; agents add their own context input)."""
+        try:
+            agent.check_env(env, host=self.host)
+            for variant in self.variants:
+                agent.config(self.env, self.agent_options, variant)
+        except ConfigError as error:
+            raise SpecError(f"agent_options: {error}") from None
+
+    def agent_entry(self):
+        """The registered agent of this spec."""
+        from contextrl.agents import get_agent
+
+        try:
+            return get_agent(self.agent)
+        except KeyError as error:
+            raise SpecError(f"agent: {error.args[0]}") from None
+
+    def agent_config(self, variant: str):
+        """The agent's config for one visibility variant (None for an untrained agent)."""
+        return self.agent_entry().config(self.env, self.agent_options, variant)
+
+    @property
+    def host(self) -> bool:
+        """Whether the environment is a host environment (trained through the host collector)."""
         import contextrl as crl
 
         try:
-            registered = crl.spec(self.env)
+            return crl.spec(self.env).host
         except KeyError as error:
             raise SpecError(f"env: {error.args[0]}") from None
-        if registered.host:
-            jax_envs = [i for i in crl.registered() if not crl.spec(i).host]
-            raise SpecError(
-                f"env: {self.env} is a host environment (stepped outside JAX); the agents here train "
-                f"JAX environments: choose one of {jax_envs}"
-            )
+
+    def make_env(self):
+        """The environment (hidden observation; agents add their own context input). A host
+        environment is built once per process and shared: specs only read its spaces."""
+        import contextrl as crl
+
+        if self.host:
+            if self.env not in _HOST_ENVS:
+                _HOST_ENVS[self.env] = crl.make(self.env)
+            return _HOST_ENVS[self.env]
         kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
         return crl.make(self.env, **kwargs)
+
+    # ---- the protocol: what subclasses implement -------------------------------------------------
+    def expand(self) -> tuple[dict, list]:
+        """Named context sets and the trials (see :mod:`contextrl.experiments.protocols`)."""
+        raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
+
+    def execute(self, run, plan, *, executor, address, max_chunks, progress):
+        """Run what is unfinished in ``run``; the default trains the plan's chunks of trials."""
+        from contextrl.experiments.executors import run_chunks
+
+        return run_chunks(
+            run,
+            plan,
+            executor=executor,
+            address=address,
+            max_chunks=max_chunks,
+            progress=progress,
+            save_params=self.agent_entry().trained,
+        )
+
+    def sections(self, plan, results, curves) -> list:
+        """The protocol's report sections from the finished results and training curves."""
+        raise NotImplementedError
+
+    def progress_row(self, run, plan, results, failures) -> dict:
+        """The report's progress table row."""
+        return {
+            "trials": len(plan.trials),
+            "trials finished": int(results["trial"].nunique()) if not results.empty else 0,
+            "chunks": len(plan.chunks),
+            "chunks finished": len(run.finished()),
+            "chunks failed": len(failures),
+            "seconds (sum over chunks)": round(sum(run.timings().values()), 1),
+        }
+
+    @classmethod
+    def vary(cls, data: dict, items: list[str]) -> None:
+        """Apply ``contextrl run --vary FEATURE=DIST`` items to the spec mapping ``data``."""
+        if cls.vary_field is None:
+            raise SpecError(f"--vary: the {data['protocol']} protocol varies no features")
+        data[cls.vary_field] = {
+            name: parse_distribution(name, value)
+            for name, value in (item.partition("=")[::2] for item in items)
+        }
 
     def space(self):
         return self.make_env().context_space
@@ -159,182 +237,20 @@ class CommonSpec:
             raise SpecError(f"{field}: {error}") from None
 
 
-@dataclasses.dataclass(frozen=True)
-class SensitivitySpec(CommonSpec):
-    """Train on the default context; evaluate with each feature scaled by A × default (paper §6.1)."""
-
-    features: tuple[str, ...] | str = "all"  # "all": every numeric feature with a non-zero default
-    magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
-
-    def validate(self) -> None:
-        super().validate()
-        if not self.magnitudes:
-            raise SpecError("magnitudes: give at least one magnitude A")
-        for magnitude in self.magnitudes:
-            _check_number("magnitudes", magnitude, 0.0)
-        self.feature_names()
-
-    def feature_names(self) -> tuple[str, ...]:
-        space = self.space()
-        if self.features == "all":
-            names = tuple(
-                n for n, f in space.features.items() if f.kind != "categorical" and f.default != 0
-            )
-        else:
-            try:
-                names = tuple(space.resolve(n) for n in _as_tuple(self.features))
-            except ContextError as error:
-                raise SpecError(f"features: {error}") from None
-            for name in names:
-                f = space.features[name]
-                if f.kind == "categorical" or f.default == 0:
-                    raise SpecError(f"features: {name} cannot be scaled (categorical or default 0)")
-        if not names:
-            raise SpecError("features: no feature to vary")
-        return names
+SPECS: dict[str, type[CommonSpec]] = {}
 
 
-@dataclasses.dataclass(frozen=True)
-class OptimalityGapSpec(CommonSpec):
-    """One general agent on N sampled contexts vs one specialist per context (paper §6.2)."""
-
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
-    num_contexts: int = 64
-
-    def validate(self) -> None:
-        super().validate()
-        _check_int("num_contexts", self.num_contexts, 1)
-        self.resolve_features("train", self.train)
+def register_protocol(cls: type[CommonSpec]) -> type[CommonSpec]:
+    """Class decorator: make a spec class the protocol named by its ``protocol`` field's default."""
+    name = cls.__dataclass_fields__["protocol"].default
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"{cls.__name__} needs a default for its protocol field")
+    SPECS[name] = cls
+    return cls
 
 
-@dataclasses.dataclass(frozen=True)
-class VisibilitySpec(CommonSpec):
-    """Hidden vs visible context: training curves and returns on held-out contexts (paper §6.3)."""
-
-    variants: tuple[str, ...] = ("hidden", "concat_all", "concat_varying")
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
-    test: dict | None = None  # None: held-out contexts from the training distribution
-    num_train_contexts: int = 64
-    num_test_contexts: int = 64
-
-    def validate(self) -> None:
-        super().validate()
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 1)
-        self.resolve_features("train", self.train)
-        if self.test is not None:
-            self.resolve_features("test", self.test)
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainTestSpec(CommonSpec):
-    """Kirk et al.'s modes over two features (paper §6.4).
-
-    ``train_box``/``test_box`` map each of the two features to [low, high]. Mode A trains on the whole
-    train box, B on an L-shaped band of width ``band`` (a fraction of each range) along the low edges,
-    C on the two low edges themselves (single values per feature). Test contexts cover the test box,
-    which must reach beyond the train box on both features so every region is tested.
-    """
-
-    variants: tuple[str, ...] = ("hidden", "concat_varying")
-    modes: tuple[str, ...] = ("A", "B", "C")
-    train_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.25, 0.75], "tau": [0.015, 0.025]}
-    )
-    test_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.05, 1.5], "tau": [0.005, 0.05]}
-    )
-    band: float = 0.1
-    num_train_contexts: int = 64
-    num_test_contexts: int = 144
-
-    def validate(self) -> None:
-        super().validate()
-        for mode in self.modes:
-            if mode not in ("A", "B", "C"):
-                raise SpecError(f"modes: unknown mode {mode!r}; choose from ['A', 'B', 'C']")
-        if not self.modes:
-            raise SpecError("modes: give at least one of ['A', 'B', 'C']")
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 4)
-        _check_number("band", self.band, 0.0)
-        if not self.band < 1.0:
-            raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
-        train, test = self.boxes()
-        for name in train:
-            (tl, th), (sl, sh) = train[name], test[name]
-            if not (sl < tl and th < sh):
-                raise SpecError(
-                    f"test_box/train_box: test range {[sl, sh]} of {name} overlaps the train range "
-                    f"{[tl, th]} without reaching beyond it on both sides; the protocol needs "
-                    "extrapolation regions"
-                )
-
-    def boxes(self) -> tuple[dict, dict]:
-        """Canonical feature names → (low, high), checked against the feature bounds."""
-        space = self.space()
-        out = []
-        for field, box in (("train_box", self.train_box), ("test_box", self.test_box)):
-            if not isinstance(box, Mapping) or len(box) != 2:
-                raise SpecError(f"{field}: give exactly two features with [low, high], got {box!r}")
-            resolved = {}
-            for name, ends in box.items():
-                try:
-                    canonical = space.resolve(name)
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                if not isinstance(ends, (list, tuple)) or len(ends) != 2:
-                    raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
-                low, high = (_check_number(f"{field}.{name}", v) for v in ends)
-                if not low < high:
-                    raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
-                try:
-                    Uniform(low, high).check(space.features[canonical])
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                resolved[canonical] = (low, high)
-            out.append(resolved)
-        if list(out[0]) != list(out[1]):
-            raise SpecError(
-                f"train_box and test_box must name the same two features in the same order, "
-                f"got {list(out[0])} and {list(out[1])}"
-            )
-        return out[0], out[1]
-
-
-@dataclasses.dataclass(frozen=True)
-class TabularSpec(CommonSpec):
-    """Exact optimality gaps on the paper's 3-state cMDP and seeded random tabular cMDPs."""
-
-    env: str = "tabular"
-    agent: str = "value_iteration"
-    num_random: int = 8
-    states: int = 4
-    actions: int = 2
-    contexts: int = 3
-    discount: float = 0.9
-
-    def validate(self) -> None:
-        super().validate()
-        for field in ("num_random", "states", "actions", "contexts"):
-            _check_int(field, getattr(self, field), 1 if field != "num_random" else 0)
-        if self.actions**self.states > 100_000:
-            raise SpecError(
-                f"states/actions: {self.actions}^{self.states} deterministic policies are too many "
-                "to enumerate exactly (limit 100000)"
-            )
-        _check_number("discount", self.discount, 0.0)
-        if not self.discount < 1.0:
-            raise SpecError(f"discount: must be below 1, got {self.discount!r}")
-
-
-SPECS: dict[str, type[CommonSpec]] = {
-    "sensitivity": SensitivitySpec,
-    "optimality_gap": OptimalityGapSpec,
-    "visibility": VisibilitySpec,
-    "train_test": TrainTestSpec,
-    "tabular": TabularSpec,
-}
+def protocol_names() -> list[str]:
+    return list(SPECS)
 
 
 def _check_int(field: str, value: Any, minimum: int) -> int:
@@ -361,7 +277,7 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
         raise SpecError(f"a spec is a mapping of fields, got {type(data).__name__}")
     protocol = data.get("protocol")
     if protocol not in SPECS:
-        raise SpecError(f"protocol: unknown protocol {protocol!r}; choose one of {list(PROTOCOLS)}")
+        raise SpecError(f"protocol: unknown protocol {protocol!r}; choose one of {list(SPECS)}")
     cls = SPECS[protocol]
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - set(fields))
