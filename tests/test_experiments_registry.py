@@ -34,6 +34,13 @@ def test_registry_lists_agents_and_refuses_mismatches():
     assert get_agent("c51").config("MountainCarContinuous", {}).distributional
 
 
+def test_paper_settings_exist_only_for_registered_environments():
+    import contextrl as crl
+
+    assert set(dqn.PAPER_C51) <= set(crl.registered())
+    assert set(sac.PAPER_SAC) <= set(crl.registered())
+
+
 def test_user_registered_agent_runs_a_protocol_from_the_cli(tmp_path):
     register_agent(
         Agent(

@@ -187,12 +187,12 @@ PAPER_C51 = {
     "CartPole": dict(hidden_sizes=(256, 256), v_min=0.0, v_max=110.0),
     "Acrobot": dict(hidden_sizes=(256, 256), v_min=-50.0, v_max=0.0),
     "MountainCar": dict(hidden_sizes=(32, 32), v_min=-100.0, v_max=100.0),
+    "LunarLander": dict(hidden_sizes=(256, 256), v_min=-100.0, v_max=100.0),
 }
 
 
 def paper_config(env_name: str, **overrides: Any) -> DQNConfig:
-    """The paper's C51 configuration for CartPole, Acrobot or MountainCar (LunarLander's comes with
-    the Box2D family)."""
+    """The paper's C51 configuration for CartPole, Acrobot, MountainCar or LunarLander."""
     if env_name not in PAPER_C51:
         raise ConfigError(f"no paper C51 setting for {env_name!r}; known: {sorted(PAPER_C51)}")
     base = dict(
