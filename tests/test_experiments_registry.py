@@ -72,7 +72,7 @@ def test_sac_runs_the_sensitivity_protocol_from_the_cli(tmp_path):
     assert commands_main(argv) == 0
     results = pd.read_parquet(next((out / "results").glob("*.parquet")))
     assert sorted(results["magnitude"]) == [0.5, 1.0]
-    assert results["ctx.g"].tolist() == [5.0, 10.0]
+    assert results["ctx.g"].tolist() == [10.0, 5.0]  # the shared default context, then A = 0.5
     assert (out / "checkpoints" / "default-hidden-s0.npz").exists()
     spec = parse_spec({"protocol": "sensitivity", "env": "Pendulum", "agent": "sac"})
     # Pendulum is one of the paper's SAC environments: its setting is the base

@@ -31,17 +31,36 @@ PROTOCOLS = [
             "magnitudes": [0.5, 1, 2],
         },
         ["Summary", "Environment", "Sensitivity", "Spec", "Run metadata"],
-        {"sensitivity-ecdf", "environment-radar"},
+        {"sensitivity-ecdf", "sensitivity-l", "sensitivity-g"},
     ),
     (
         {"protocol": "optimality_gap", "num_contexts": 3, **PENDULUM},
-        ["Summary", "Environment", "Optimality gap (hidden)", "Spec", "Run metadata"],
-        {"optgap-ecdf-hidden", "optgap-intervals-hidden", "optgap-per-context-hidden"},
+        [
+            "Summary",
+            "Environment",
+            "Optimality gap (hidden)",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {
+            "optgap-ecdf-hidden",
+            "optgap-intervals-hidden",
+            "optgap-per-context-hidden",
+            "return-vs-l",
+        },
     ),
     (
         {"protocol": "visibility", "num_train_contexts": 3, "num_test_contexts": 4, **PENDULUM},
-        ["Summary", "Environment", "Context visibility", "Spec", "Run metadata"],
-        {"test-ecdf", "test-histogram", "test-intervals"},
+        [
+            "Summary",
+            "Environment",
+            "Context visibility",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {"test-ecdf", "test-histogram", "test-intervals", "return-vs-l"},
     ),
     (
         {
@@ -53,8 +72,15 @@ PROTOCOLS = [
             "variants": ["hidden"],
             "num_test_contexts": 16,
         },
-        ["Summary", "Environment", "Train/test modes", "Spec", "Run metadata"],
-        {"heatmap-A-hidden", "heatmap-C-hidden"},
+        [
+            "Summary",
+            "Environment",
+            "Train/test modes",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {"heatmap-A-hidden", "heatmap-C-hidden", "return-vs-l", "return-vs-g"},
     ),
     (
         {"protocol": "tabular", "num_random": 2},
@@ -77,9 +103,9 @@ def test_every_protocol_runs_end_to_end(data, expected_sections, expected_figure
     if data["protocol"] != "tabular":
         assert results["return"].max() < 0
     if data["protocol"] == "sensitivity":
-        # 2 seeds x (2 features x 3 magnitudes); the default magnitude repeats the default context
-        assert len(results) == 2 * 6
-        assert set(results["feature"]) == {"l", "g"}
+        # 2 seeds x (the default context once + 2 features x the 2 magnitudes other than 1)
+        assert len(results) == 2 * 5
+        assert set(results["feature"]) == {"(default)", "l", "g"}
     if data["protocol"] == "optimality_gap":
         html = (run.path / "report.html").read_text()
         fractions = re.search(r"general (\d\.\d\d), specialists (\d\.\d\d)", html).groups()

@@ -12,9 +12,11 @@ from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_c
 from contextrl.agents.evaluation import evaluate, evaluate_episodes
 from contextrl.agents.networks import CONTEXT_MODES, ConfigError
 from contextrl.agents.registry import Agent, get_agent, register_agent, registered_agents
+from contextrl.agents.saved import SavedPolicy, load_policy
 
 __all__ = [
     "Agent",
+    "SavedPolicy",
     "CONTEXT_MODES",
     "ConfigError",
     "checkpoint_info",
@@ -22,6 +24,7 @@ __all__ = [
     "evaluate_episodes",
     "get_agent",
     "load_checkpoint",
+    "load_policy",
     "dqn",
     "ppo",
     "register_agent",

@@ -87,6 +87,7 @@ class HostCollector:
         self._running_length = np.zeros(num_envs, np.int64)
         self._episodes: list[tuple[float, int, int, int]] = []
         self._period_start = 0
+        self._last_curve = (0.0, 0.0)
         obs, info = self.envs.reset(seed=seed)
         self.obs, self.context = np.asarray(obs, np.float32), self._context_input(info)
 
@@ -137,13 +138,24 @@ class HostCollector:
         return HostStep(reward, terminated, truncated, final, obs, self.context)
 
     def close_period(self) -> dict[str, float]:
-        """The training-curve row of the episodes that ended since the last call (NaN if none)."""
+        """The training-curve row of the episodes that ended since the last call; when none did, the
+        last row's values (before any episode ended: the running episodes' so far), never NaN."""
         ended = self._episodes[self._period_start :]
         self._period_start = len(self._episodes)
+        if ended:
+            self._last_curve = (
+                float(np.mean([e[0] for e in ended])),
+                float(np.mean([e[1] for e in ended])),
+            )
+        elif not self._episodes:
+            self._last_curve = (
+                float(self._running_return.mean()),
+                float(self._running_length.mean()),
+            )
         return {
             "step": self.steps,
-            "episode_return": float(np.mean([e[0] for e in ended])) if ended else np.nan,
-            "episode_length": float(np.mean([e[1] for e in ended])) if ended else np.nan,
+            "episode_return": self._last_curve[0],
+            "episode_length": self._last_curve[1],
             "episodes_finished": len(ended),
         }
 

@@ -51,8 +51,14 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
     features = list(returns)
     columns = min(3, len(features))
     rows = -(-len(features) // columns)
+    # constrained layout keeps the figure title, panel titles and colour bar from overlapping
     figure, axes = plt.subplots(
-        rows, columns, figsize=(4.2 * columns, 3.2 * rows), squeeze=False, sharey=True
+        rows,
+        columns,
+        figsize=(4.2 * columns, 3.2 * rows),
+        squeeze=False,
+        sharey=True,
+        layout="constrained",
     )
     cmap = plt.get_cmap("viridis")
     for axis, name in zip(axes.ravel(), features, strict=False):
@@ -76,17 +82,20 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
 
 
 def training_curves(
-    steps: Sequence[float],
+    steps: Sequence[float] | Mapping[str, Sequence[float]],
     curves_by_label: Mapping[str, np.ndarray],
     title: str = "",
     seed: int = 0,
 ):
-    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points)."""
+    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points).
+
+    ``steps`` is shared, or a mapping label → steps for curves logged at different steps."""
     figure, axis = plt.subplots(figsize=(5.5, 3.5))
     for label, curves in curves_by_label.items():
+        x = steps[label] if isinstance(steps, Mapping) else steps
         mean, low, high = curve_band(curves, seed=seed)
-        (line,) = axis.plot(steps, mean, label=str(label))
-        axis.fill_between(steps, low, high, color=line.get_color(), alpha=0.25)
+        (line,) = axis.plot(x, mean, label=str(label))
+        axis.fill_between(x, low, high, color=line.get_color(), alpha=0.25)
     axis.set(xlabel="environment steps", ylabel="episode return", title=title)
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)
@@ -110,7 +119,11 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
     labels = list(results)
     metrics = list(next(iter(results.values())))
     figure, axes = plt.subplots(
-        1, len(metrics), figsize=(3.2 * len(metrics), 0.6 + 0.5 * len(labels)), squeeze=False
+        1,
+        len(metrics),
+        figsize=(3.2 * len(metrics), 1.0 + 0.5 * len(labels)),
+        squeeze=False,
+        layout="constrained",
     )
     for axis, metric in zip(axes[0], metrics, strict=True):
         for row, label in enumerate(labels):
@@ -121,7 +134,7 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
         axis.set_title(metric)
         axis.grid(axis="x", alpha=0.3)
     if title:
-        figure.suptitle(title, y=1.08)
+        figure.suptitle(title)
     return figure
 
 
@@ -233,6 +246,41 @@ def scatter(
     for label, y in y_by_label.items():
         axis.scatter(x, y, s=12, label=str(label))
     axis.axhline(0.0, color="gray", lw=0.8)
+    axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    axis.legend(fontsize="small")
+    axis.grid(alpha=0.3)
+    return figure
+
+
+def return_vs_feature(
+    lines: Mapping[str, tuple[Sequence[float], np.ndarray]],
+    *,
+    xlabel: str,
+    train_range: tuple[float, float] | None = None,
+    ylabel: str = "test return",
+    title: str = "",
+    seed: int = 0,
+    reference: float | None = None,
+):
+    """Mean return against one context feature per label, with a 95 % bootstrap band over runs.
+
+    ``lines`` maps a label to (x values, returns shaped runs × points); ``train_range`` (low, high) is
+    shaded as the training range (a line when low == high); ``reference`` draws a dashed horizontal
+    line (e.g. the return at the default context).
+    """
+    figure, axis = plt.subplots(figsize=(5.5, 3.6))
+    if train_range is not None:
+        low, high = train_range
+        if high > low:
+            axis.axvspan(low, high, color="gray", alpha=0.15, label="training range")
+        else:
+            axis.axvline(low, color="gray", lw=1.5, alpha=0.6, label="training value")
+    for label, (x, runs) in lines.items():
+        mean, low, high = curve_band(runs, seed=seed)
+        (line,) = axis.plot(x, mean, marker="o", ms=3, label=str(label))
+        axis.fill_between(x, low, high, color=line.get_color(), alpha=0.2)
+    if reference is not None:
+        axis.axhline(reference, color="black", ls="--", lw=0.8, label="default context")
     axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)

@@ -11,7 +11,13 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import interval_estimates, paired_bootstrap_ci
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import CI_METRICS, figure, interval_rows, score_matrix
+from contextrl.experiments.analyze import (
+    CI_METRICS,
+    figure,
+    interval_rows,
+    score_matrix,
+    training_figure,
+)
 from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
 from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
 
@@ -35,7 +41,10 @@ class OptimalityGapSpec(CommonSpec):
         return _expand(self)
 
     def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results)
+        training = (
+            [] if curves.empty else [Section("Training", figures=[training_figure(self, curves)])]
+        )
+        return _sections(self, plan, results) + training
 
 
 def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:

@@ -23,31 +23,14 @@ import datetime
 import json
 import os
 import platform
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import yaml
 
-from contextrl.experiments.spec import CommonSpec, parse_spec, spec_to_dict
-
-
-def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
-    """Call ``write(temporary_path)``, then rename the temporary file onto ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(handle)
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
-        raise
-    return path
+from contextrl.core.files import atomic_write
+from contextrl.experiments.spec import CommonSpec, load_yaml, parse_spec, spec_to_dict
 
 
 def write_text(path: Path, text: str) -> Path:
@@ -111,7 +94,7 @@ class RunDir:
         file = self.path / "spec.yaml"
         if not file.exists():
             raise FileNotFoundError(f"{self.path} is not a run directory (no spec.yaml)")
-        return parse_spec(yaml.safe_load(file.read_text(encoding="utf-8")))
+        return parse_spec(load_yaml(file.read_text(encoding="utf-8"), str(file)))
 
     def manifest(self) -> dict[str, Any]:
         file = self.path / "manifest.json"
@@ -140,7 +123,10 @@ class RunDir:
             for trial_id, params in zip(trial_ids, result.params, strict=True):
                 if params is not None:
                     save_checkpoint(
-                        self.path / "checkpoints" / f"{trial_id}.npz", params, trial=trial_id
+                        self.path / "checkpoints" / f"{trial_id}.npz",
+                        params,
+                        trial=trial_id,
+                        **result.checkpoint,
                     )
         if len(result.curves):
             write_parquet(self.path / "curves" / f"chunk-{chunk:04d}.parquet", result.curves)

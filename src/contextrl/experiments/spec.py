@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import typing
 from collections.abc import Mapping
 from typing import Any, ClassVar
+
+import yaml
 
 from contextrl.context.distributions import (
     Categorical,
@@ -46,6 +49,41 @@ class SpecError(ValueError):
     """An invalid experiment spec; raised before anything runs."""
 
 
+class _SpecLoader(yaml.SafeLoader):
+    """PyYAML's safe loader reading exponents as numbers, as YAML 1.2 does (YAML 1.1, PyYAML's
+    default, wants ``1.0e+5`` and reads ``1e5`` as a string). A whole number written with an exponent
+    and no point (``1e5``) is an int, so it can be a step count; ``2.5e-3`` is a float."""
+
+
+_EXPONENT_TAG = "tag:contextrl,2024:exponent"
+_SpecLoader.add_implicit_resolver(
+    _EXPONENT_TAG,
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)?(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def _exponent(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int | float:
+    text = loader.construct_scalar(node).replace("_", "")
+    value = float(text)
+    return int(value) if "." not in text and value.is_integer() else value
+
+
+_SpecLoader.add_constructor(_EXPONENT_TAG, _exponent)
+
+
+def load_yaml(text: str, source: str = "YAML") -> Any:
+    """YAML text as data; a syntax error becomes a one-line :class:`SpecError` with line and column."""
+    try:
+        return yaml.load(text, Loader=_SpecLoader)  # noqa: S506  (a SafeLoader subclass)
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise SpecError(f"{source}: YAML syntax error{where}: {error.problem}") from None
+    except yaml.YAMLError as error:
+        raise SpecError(f"{source}: cannot read YAML ({error})") from None
+
+
 _HOST_ENVS: dict[str, Any] = {}
 
 
@@ -70,7 +108,7 @@ def parse_distribution(feature: str, value: Any):
                 f"{feature}: unknown distribution {name!r}; choose one of {list(DISTRIBUTION_NAMES)}"
             )
         if name == "categorical":
-            return Categorical(tuple(args))
+            return _categorical(feature, args)
         args = args if isinstance(args, (list, tuple)) else [args]
         try:
             return DISTRIBUTION_NAMES[name](*args)
@@ -81,13 +119,37 @@ def parse_distribution(feature: str, value: Any):
     return Constant(value)
 
 
+def _categorical(feature: str, args: Any) -> Categorical:
+    """``[a, b]`` (equal weights), ``{choices: [a, b], weights: [1, 3]}`` or ``{a: 1, b: 3}``."""
+    if isinstance(args, Mapping):
+        if set(args) <= {"choices", "weights"} and "choices" in args:
+            choices, weights = args["choices"], args.get("weights")
+        else:
+            choices, weights = list(args), list(args.values())
+        if not isinstance(choices, (list, tuple)) or (
+            weights is not None and not isinstance(weights, (list, tuple))
+        ):
+            raise SpecError(
+                f"{feature}: categorical takes {{choices: [...], weights: [...]}}, got {args!r}"
+            )
+        if weights is not None and len(weights) != len(choices):
+            raise SpecError(
+                f"{feature}: categorical has {len(choices)} choices but {len(weights)} weights"
+            )
+        return Categorical(tuple(choices), None if weights is None else tuple(weights))
+    return Categorical(tuple(args if isinstance(args, (list, tuple)) else [args]))
+
+
 def distribution_to_yaml(distribution) -> Any:
     """The inverse of :func:`parse_distribution`, for writing the resolved spec."""
     for name, cls in DISTRIBUTION_NAMES.items():
         if type(distribution) is cls:
             values = [v for v in dataclasses.astuple(distribution) if v is not None]
             if name == "categorical":
-                return {name: list(distribution.choices)}
+                if distribution.weights is None:
+                    return {name: list(distribution.choices)}
+                weights = [float(w) for w in distribution.weights]
+                return {name: {"choices": list(distribution.choices), "weights": weights}}
             return {name: [v if isinstance(v, str) else float(v) for v in values]}
     raise SpecError(f"not a distribution: {distribution!r}")
 
@@ -111,6 +173,8 @@ class CommonSpec:
 
     trains_agents: ClassVar[bool] = True  # False: the protocol has no agent, env or variants
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
+    per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
+    draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
 
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
@@ -123,7 +187,7 @@ class CommonSpec:
         if not self.trains_agents:
             return
         if not isinstance(self.agent_options, Mapping):
-            raise SpecError(f"agent_options must be a mapping, got {self.agent_options!r}")
+            raise SpecError(agent_options_error(self.agent_options))
         if not self.variants:
             raise SpecError(f"variants: give at least one of {list(VARIANTS)}")
         for variant in self.variants:
@@ -214,14 +278,18 @@ class CommonSpec:
         }
 
     @classmethod
-    def vary(cls, data: dict, items: list[str]) -> None:
-        """Apply ``contextrl run --vary FEATURE=DIST`` items to the spec mapping ``data``."""
+    def vary(cls, data: dict, items: list[str]) -> str | None:
+        """Apply ``contextrl run --vary FEATURE=DIST`` items to the spec mapping ``data``, feature by
+        feature on top of what a config gave; returns a notice saying what was kept and replaced."""
         if cls.vary_field is None:
             raise SpecError(f"--vary: the {data['protocol']} protocol varies no features")
-        data[cls.vary_field] = {
-            name: parse_distribution(name, value)
-            for name, value in (item.partition("=")[::2] for item in items)
-        }
+        given = {}
+        for item in items:
+            name, sep, value = item.partition("=")
+            if not sep or not name.strip() or not value.strip():
+                raise SpecError(f"--vary: expected FEATURE=DIST, got {item!r}")
+            given[name.strip()] = parse_distribution(name.strip(), value.strip())
+        return merge_features(data, cls.vary_field, given)
 
     def space(self):
         return self.make_env().context_space
@@ -235,6 +303,22 @@ class CommonSpec:
             return check_spec(self.space(), parsed)
         except ContextError as error:
             raise SpecError(f"{field}: {error}") from None
+
+
+def merge_features(data: dict, field: str, given: Mapping[str, Any]) -> str | None:
+    """Set ``data[field]`` to its features updated with ``given``; a notice when some were kept."""
+    existing = data.get(field)
+    existing = dict(existing) if isinstance(existing, Mapping) else {}
+    data[field] = {**existing, **given}
+    kept = [name for name in existing if name not in given]
+    if not kept:
+        return None
+    replaced = [name for name in given if name in existing]
+    return (
+        f"--vary: {field} keeps {kept} from the config"
+        + (f" and replaces {replaced}" if replaced else "")
+        + f"; now {list(data[field])}"
+    )
 
 
 SPECS: dict[str, type[CommonSpec]] = {}
@@ -251,6 +335,18 @@ def register_protocol(cls: type[CommonSpec]) -> type[CommonSpec]:
 
 def protocol_names() -> list[str]:
     return list(SPECS)
+
+
+def agent_options_error(value: Any) -> str:
+    """The message for agent_options that are not a mapping (often ``"key=value"`` text)."""
+    example = "{total_timesteps: 1000}"
+    if isinstance(value, str) and "=" in value:
+        key, _, number = value.partition("=")
+        example = f"{{{key.strip()}: {number.strip()}}}"
+    return (
+        f"agent_options: expected a mapping of agent options, got {value!r}; "
+        f"in YAML write agent_options: {example} (or --agent-option KEY=VALUE)"
+    )
 
 
 def _check_int(field: str, value: Any, minimum: int) -> int:

@@ -25,7 +25,7 @@ import pandas as pd
 
 from contextrl.analysis import plots
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import figure
+from contextrl.experiments.analyze import figure, natural_key
 from contextrl.experiments.runs import write_parquet
 from contextrl.experiments.spec import (
     CommonSpec,
@@ -347,7 +347,8 @@ def tabular_frame(spec: TabularSpec) -> pd.DataFrame:
 
 def _sections(spec: TabularSpec, results: pd.DataFrame) -> list[Section]:
     rows, gaps = [], {}
-    for name, group in results.groupby("trial", sort=False):
+    groups = sorted(results.groupby("trial", sort=False), key=lambda item: natural_key(item[0]))
+    for name, group in groups:
         deterministic = float(np.mean(group["optimal_return"] - group["oblivious_return"]))
         stochastic = float(np.mean(group["optimal_return"] - group["stochastic_return"]))
         gaps[name] = deterministic

@@ -11,7 +11,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
-import yaml
 
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import interval_estimates
@@ -25,6 +24,8 @@ from contextrl.experiments.spec import (
     SpecError,
     _check_int,
     _check_number,
+    load_yaml,
+    merge_features,
     register_protocol,
 )
 
@@ -55,6 +56,8 @@ class TrainTestSpec(CommonSpec):
     num_train_contexts: int = 64
     num_test_contexts: int = 144
 
+    draws_heatmap = True  # its sections draw a heat map per mode and variant
+
     def validate(self) -> None:
         super().validate()
         for mode in self.modes:
@@ -64,6 +67,12 @@ class TrainTestSpec(CommonSpec):
             raise SpecError("modes: give at least one of ['A', 'B', 'C']")
         _check_int("num_train_contexts", self.num_train_contexts, 1)
         _check_int("num_test_contexts", self.num_test_contexts, 4)
+        side = int(np.sqrt(self.num_test_contexts))
+        if side * side != self.num_test_contexts:
+            raise SpecError(
+                f"num_test_contexts: the test contexts form a side × side grid, and "
+                f"{self.num_test_contexts} is not a square; use {side * side} or {(side + 1) ** 2}"
+            )
         _check_number("band", self.band, 0.0)
         if not self.band < 1.0:
             raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
@@ -80,14 +89,14 @@ class TrainTestSpec(CommonSpec):
     vary_field = "train_box"  # --vary length=[0.25,0.75] tau=[0.015,0.025]
 
     @classmethod
-    def vary(cls, data: dict, items: list[str]) -> None:
+    def vary(cls, data: dict, items: list[str]) -> str | None:
         boxes = {}
         for item in items:
             name, sep, value = item.partition("=")
             if not sep or not name:
                 raise SpecError(f"--vary: expected FEATURE=[LOW,HIGH], got {item!r}")
-            boxes[name] = yaml.safe_load(value)
-        data["train_box"] = boxes
+            boxes[name] = load_yaml(value, f"--vary {name}")
+        return merge_features(data, "train_box", boxes)
 
     def expand(self) -> tuple[dict, list]:
         return _expand(self)

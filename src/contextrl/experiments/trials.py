@@ -25,13 +25,15 @@ TRAIN_EVAL_CONTEXTS = 16
 @dataclasses.dataclass
 class ChunkResult:
     """Evaluation rows (one per trial × test context), training-curve rows, per-trial returns on the
-    training contexts (trained and random policy) and trained parameters."""
+    training contexts (trained and random policy), trained parameters, and what a checkpoint needs to
+    rebuild the policy (config, training contexts, agent and environment names)."""
 
     evaluations: pd.DataFrame
     curves: pd.DataFrame
     params: list[Any]
     seconds: float
     training: pd.DataFrame = dataclasses.field(default_factory=pd.DataFrame)
+    checkpoint: dict = dataclasses.field(default_factory=dict)
 
 
 _COMPILED: dict[tuple, Any] = {}
@@ -105,37 +107,53 @@ def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_ba
     return np.asarray(returns), np.asarray(steps[0]), np.asarray(curves), per_trial, own
 
 
+def host_context_input(spec, variant: str, env, template):
+    """What a host-trained agent of ``variant`` sees of the context (nothing for an untrained one)."""
+    from contextrl.agents.networks import ContextInput, context_input
+
+    trained = spec.agent_entry().trained
+    return (context_input(variant, env.context_space, template) if trained else None) or (
+        ContextInput()
+    )
+
+
+def host_returns(spec, context, policy, params, contexts, episodes: int, key) -> np.ndarray:
+    """Mean return per context of a host policy, one host copy per context."""
+    from contextrl.agents.host import HostCollector
+
+    limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
+    seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
+    with HostCollector(
+        spec.env,
+        len(contexts),
+        contexts,
+        selector="round_robin",  # copy i runs context i
+        seed=seed,
+        context=context,
+        **limit,
+    ) as collector:
+        return collector.evaluate(policy, params, episodes, key)
+
+
 def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
     """The host path of a chunk: each trial trains on the shared host collector (the agent's
     ``train_host``), then acts in host copies of its test and training contexts; same outputs as
     :func:`_train_and_evaluate`."""
     from contextrl.agents import get_agent
-    from contextrl.agents.host import HostCollector
-    from contextrl.agents.networks import ContextInput, context_input
+    from contextrl.agents.networks import ContextInput
 
     spec = plan.spec
     agent = spec.agent_entry()
     variant = trials[0].variant
     config = spec.agent_config(variant)
-    context = context_input(variant, env.context_space, template) if agent.trained else None
-    context = context or ContextInput()
+    context = host_context_input(spec, variant, env, template)
     spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
     act = agent.make_host_policy(config, *spaces, context)
     random_act = get_agent("random").make_host_policy(None, *spaces, ContextInput())
     limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
 
     def evaluate(policy, params, contexts, key) -> np.ndarray:
-        seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
-        with HostCollector(
-            spec.env,
-            len(contexts),
-            contexts,
-            selector="round_robin",  # copy i runs context i
-            seed=seed,
-            context=context,
-            **limit,
-        ) as collector:
-            return collector.evaluate(policy, params, spec.eval_episodes, key)
+        return host_returns(spec, context, policy, params, contexts, spec.eval_episodes, key)
 
     returns, steps, curves, params, own = [], np.zeros(0), [], [], []
     for trial, key in zip(trials, keys, strict=True):
@@ -236,6 +254,18 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
             "random_return": own[:, 1].astype(np.float64),
         }
     )
+    checkpoint = {
+        "config": spec.agent_config(trials[0].variant),
+        "train_contexts": template,
+        "agent": spec.agent,
+        "env": spec.env,
+        "max_steps": spec.max_steps,
+    }
     return ChunkResult(
-        pd.concat(eval_frames, ignore_index=True), curves_frame, params, seconds, training
+        pd.concat(eval_frames, ignore_index=True),
+        curves_frame,
+        params,
+        seconds,
+        training,
+        checkpoint,
     )
