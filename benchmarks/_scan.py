@@ -48,6 +48,33 @@ def random_rollout(reset, step, sample_action, params, steps: int, devices: int 
     return lambda key: compiled(jax.random.split(key, devices), shards)
 
 
+def batched_rollout(reset_batch, step_batch, num_actions: int, steps: int):
+    """A compiled function key → checksum over whole batches: how a batched API is used.
+
+    ``reset_batch(key) -> (state, obs)`` starts every copy; ``step_batch(key, state, actions) ->
+    (state, obs)`` steps them all. Actions are uniform over ``num_actions``, one draw per step for the
+    whole batch. Each library gets the per-copy keys it needs its own way (gymnax: a split per copy per
+    step; contextrl's ``step_copies``: from the state, none per step).
+    """
+
+    def run(key):
+        reset_key, key = jax.random.split(key)
+        state, obs = reset_batch(reset_key)
+        n = obs.shape[0]
+
+        def body(carry, _):
+            state, key, total = carry
+            key, action_key, step_key = jax.random.split(key, 3)
+            actions = jax.random.randint(action_key, (n,), 0, num_actions)
+            state, obs = step_batch(step_key, state, actions)
+            return (state, key, total + jnp.sum(obs)), None
+
+        (_, _, total), _ = jax.lax.scan(body, (state, key, jnp.zeros(())), None, steps)
+        return total
+
+    return jax.jit(run)
+
+
 def steps_per_second(run, n: int, steps: int, repeats: int = 3) -> tuple[float, float]:
     """(compile seconds, best steps/s over ``repeats`` timed calls)."""
     start = time.perf_counter()

@@ -14,13 +14,14 @@ import subprocess
 import sys
 
 import jax
-from _scan import CORES, random_rollout, steps_per_second
+from _scan import CORES, batched_rollout, random_rollout, steps_per_second
 
 import contextrl as crl
 
 HERE = pathlib.Path(__file__).resolve().parent
 GYMNAX_VENV = HERE.parent / ".venv-gymnax"
 LENGTHS = {"length": crl.Uniform(0.25, 0.75)}
+KEY = jax.random.key(0)
 
 
 def fixed_contexts(env, n, spec):
@@ -38,22 +39,23 @@ def fixed_contexts(env, n, spec):
     return reset, step, contexts
 
 
-def switching_contexts(env, n, spec, resample: bool):
-    """ContextualEnv: each copy picks a new context at every reset, inside the compiled loop."""
-    if resample:
-        contextual = crl.with_contexts(env, spec)
-    else:
-        contextual = crl.with_contexts(env, crl.sample(env, spec, 64, jax.random.key(0)))
+def contextual_rate(env, n, steps, contexts) -> float:
+    """Steps/s of ``ContextualEnv.step_copies``: contexts chosen at every reset inside the loop.
 
-    def reset(key, _):
-        state, ts = contextual.reset(key)
+    ``contexts``: a set (round robin; with ``n`` contexts copy i keeps context i) or a distribution spec.
+    """
+    contextual = crl.with_contexts(env, contexts)
+
+    def reset_batch(key):
+        state, ts = contextual.reset_copies(key, n)
         return state, ts.obs
 
-    def step(key, state, action, _):
-        state, ts = contextual.step(key, state, action)
+    def step_batch(_, state, actions):  # every draw comes from the key given at reset
+        state, ts = contextual.step_copies(state, actions)
         return state, ts.obs
 
-    return reset, step, jax.numpy.zeros(n)
+    run = batched_rollout(reset_batch, step_batch, env.action_space.n, steps)
+    return steps_per_second(run, n, steps)[1]
 
 
 def measure(env, n, steps, make=fixed_contexts, devices=1, **kwargs):
@@ -66,7 +68,7 @@ def measure(env, n, steps, make=fixed_contexts, devices=1, **kwargs):
     return steps_per_second(run, n, steps)
 
 
-def gymnax_rate(copies: int, steps: int, devices: int) -> float:
+def gymnax_rate(copies: int, steps: int, devices: int, batched: bool = False) -> float:
     python = GYMNAX_VENV / "bin" / "python"
     if not python.exists():
         subprocess.run([sys.executable, "-m", "venv", str(GYMNAX_VENV)], check=True)
@@ -92,6 +94,9 @@ def gymnax_rate(copies: int, steps: int, devices: int) -> float:
             str(copies),
             "--steps",
             str(steps),
+            "--devices",
+            str(devices),
+            *(["--batched"] if batched else []),
         ],
         check=True,
         capture_output=True,
@@ -132,12 +137,9 @@ def main() -> None:
         ("fixed per-copy contexts", fixed),
         (
             "set of 64, round robin",
-            measure(cartpole, 4096, steps, switching_contexts, resample=False)[1],
+            contextual_rate(cartpole, 4096, steps, crl.sample(cartpole, LENGTHS, 64, KEY)),
         ),
-        (
-            "resampled every reset",
-            measure(cartpole, 4096, steps, switching_contexts, resample=True)[1],
-        ),
+        ("resampled every reset", contextual_rate(cartpole, 4096, steps, LENGTHS)),
     ]
     for label, rate in rows:
         print(f"{label:>28} {rate:>12.3g} steps/s  ({rate / fixed:.2f} × fixed)")
@@ -148,9 +150,16 @@ def main() -> None:
             ours = measure(cartpole, 4096, steps, devices=devices)[1]
             theirs = gymnax_rate(4096, steps, devices)
             print(
-                f"{devices} device(s): gymnax {theirs:.3g} steps/s, contextrl {ours:.3g} steps/s, "
-                f"contextrl / gymnax = {ours / theirs:.2f}"
+                f"{devices} device(s), per-copy loop: gymnax {theirs:.3g} steps/s, contextrl "
+                f"{ours:.3g} steps/s, contextrl / gymnax = {ours / theirs:.2f}"
             )
+        own = crl.sample(cartpole, LENGTHS, 4096, KEY)
+        ours = contextual_rate(cartpole, 4096, steps, own)
+        theirs = gymnax_rate(4096, steps, 1, batched=True)
+        print(
+            f"batched core (ContextualEnv.step_copies vs vmap of gymnax): gymnax {theirs:.3g} "
+            f"steps/s, contextrl {ours:.3g} steps/s, contextrl / gymnax = {ours / theirs:.2f}"
+        )
 
 
 if __name__ == "__main__":

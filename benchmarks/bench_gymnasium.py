@@ -1,11 +1,15 @@
-"""Steps per second through the gymnasium API: CARL, gymnasium, our single env, our vector env.
+"""Steps per second through the gymnasium API: CARL, gymnasium, envpool, our single and vector envs.
 
-    python benchmarks/bench_gymnasium.py [--steps 20000] [--skip-carl]
+    python benchmarks/bench_gymnasium.py [--steps 20000] [--skip-carl] [--skip-envpool]
 
-CARL (``carl-bench==1.1.1``) is measured in its own virtual environment, ``.venv-carl``, created here on
-first use (it pins old versions that must not enter the project's environment). Every row runs random
-actions from a seeded generator and resets finished episodes, the way a training loop would. Vector rows
-count steps of single copies (``num_envs`` per call). Ratios are against CARL's ``CARLCartPole``.
+CARL (``carl-bench==1.1.1``) and envpool are measured in their own virtual environments,
+``.venv-carl`` and ``.venv-envpool``, created here on first use (they pin versions that must not enter
+the project's environment). Every row runs random actions from a seeded generator and resets finished
+episodes, the way a training loop would. The single-env table's ratios are against CARL's
+``CARLCartPole`` and gymnasium's ``CartPole-v1``; the vector table counts steps of single copies
+(``num_envs`` per call) of CartPole, ours with a pole length per copy, against envpool's
+``CartPole-v1`` on one thread. Each side is timed ``--rounds`` times, alternating, and the best kept, so
+a busy machine penalises both alike.
 """
 
 from __future__ import annotations
@@ -18,7 +22,25 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _peers import CARL, run_peer  # noqa: E402
+from _peers import CARL, ENVPOOL, run_peer  # noqa: E402
+
+VECTOR_SIZES = (8, 64, 1024)
+
+ENVPOOL_SCRIPT = """
+import json, sys, time
+import numpy as np
+import envpool
+copies, calls = int(sys.argv[1]), int(sys.argv[2])
+env = envpool.make_gymnasium("CartPole-v1", num_envs=copies, num_threads=1, seed=0)
+env.reset()
+actions = np.random.default_rng(0).integers(0, 2, (calls, copies))
+for action in actions[:20]:
+    env.step(action)
+start = time.perf_counter()
+for action in actions:
+    env.step(action)
+print(json.dumps({"steps_per_s": calls * copies / (time.perf_counter() - start)}))
+"""
 
 CARL_SCRIPT = """
 import json, sys, time, warnings
@@ -45,6 +67,10 @@ def bench_carl(steps: int) -> float:
     return run_peer(CARL, CARL_SCRIPT, steps)["steps_per_s"]
 
 
+def bench_envpool(num_envs: int, steps: int) -> float:
+    return run_peer(ENVPOOL, ENVPOOL_SCRIPT, num_envs, max(50, steps // num_envs))["steps_per_s"]
+
+
 def bench_single(env, steps: int) -> float:
     """Steps/s of a gymnasium env under random actions, resetting finished episodes."""
     env.reset(seed=0)
@@ -61,10 +87,16 @@ def bench_single(env, steps: int) -> float:
 
 
 def bench_vector(num_envs: int, steps: int) -> float:
-    """Copy-steps/s of the compiled vector env (auto-reset inside the call)."""
-    from contextrl.gymnasium import ContextualVectorEnv
+    """Copy-steps/s of the compiled vector env (auto-reset inside the call), a pole length per copy."""
+    import gymnasium
+    import jax
 
-    envs = ContextualVectorEnv("CartPole", num_envs=num_envs)
+    import contextrl as crl
+
+    lengths = crl.sample(
+        crl.make("CartPole"), {"length": crl.Uniform(0.25, 0.75)}, num_envs, jax.random.key(0)
+    )
+    envs = gymnasium.make_vec("contextrl/CartPole-v0", num_envs=num_envs, contexts=lengths)
     envs.reset(seed=0)
     calls = max(50, steps // num_envs)
     actions = np.random.default_rng(0).integers(0, 2, (calls, num_envs))
@@ -103,69 +135,87 @@ def bench_core(num_envs: int, steps: int) -> float:
     return calls * num_envs / (time.perf_counter() - start)
 
 
+def print_table(title: str, rows: list[tuple[str, float]], peers: dict[str, float]) -> None:
+    """Rows of steps/s with one ratio column per peer."""
+    width = max(len(name) for name, _ in rows)
+    header = f"{'what'.ljust(width)}  {'steps/s':>10}" + "".join(f"  × {p:>8}" for p in peers)
+    print(f"\n{title}\n{header}\n{'-' * len(header)}")
+    for name, rate in rows:
+        ratios = "".join(f"  {rate / peer:10.2f}" for peer in peers.values())
+        print(f"{name.ljust(width)}  {rate:10.3e}{ratios}")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20_000, help="single-env steps per row")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating timings, best kept")
     parser.add_argument("--skip-carl", action="store_true", help="do not measure CARL")
+    parser.add_argument("--skip-envpool", action="store_true", help="do not measure envpool")
     args = parser.parse_args(argv)
 
     import gymnasium
 
     import contextrl  # noqa: F401  (registers contextrl/<Id>-v0)
-    from contextrl.gymnasium import ContextualGymEnv
 
-    rows: list[tuple[str, float]] = []
-    carl = None if args.skip_carl else bench_carl(args.steps)
-    if carl is not None:
-        rows.append(("CARL 1.1.1 CARLCartPole (one env)", carl))
-    rows.append(
-        ("gymnasium CartPole-v1 (one env)", bench_single(gymnasium.make("CartPole-v1"), args.steps))
-    )
-    rows.append(
-        (
-            "contextrl gymnasium.make('contextrl/CartPole-v0')",
-            bench_single(gymnasium.make("contextrl/CartPole-v0"), args.steps),
-        )
-    )
-    rows.append(
-        (
-            "contextrl ContextualGymEnv (unwrapped)",
-            bench_single(ContextualGymEnv("CartPole"), args.steps),
-        )
-    )
-    rows.append(
-        (
-            "contextrl single, 8 contexts round robin, visible",
-            bench_single(
-                ContextualGymEnv(
-                    "CartPole",
-                    contexts=[{"length": 0.1 * (i + 1)} for i in range(8)],
-                    obs_context_features="varying",
-                ),
-                args.steps,
+    def best(measure) -> float:
+        return max(measure() for _ in range(args.rounds))
+
+    single = {
+        "gymnasium CartPole-v1": lambda: bench_single(gymnasium.make("CartPole-v1"), args.steps),
+        "contextrl gymnasium.make('contextrl/CartPole-v0')": lambda: bench_single(
+            gymnasium.make("contextrl/CartPole-v0"), args.steps
+        ),
+        "contextrl, 8 contexts round robin, visible": lambda: bench_single(
+            gymnasium.make(
+                "contextrl/CartPole-v0",
+                contexts=[{"length": 0.1 * (i + 1)} for i in range(8)],
+                obs_context_features="varying",
             ),
-        )
-    )
-    for num_envs in (1, 8, 64, 1024):
-        rows.append(
-            (f"contextrl vector env, {num_envs} copies", bench_vector(num_envs, args.steps * 10))
-        )
+            args.steps,
+        ),
+    }
+    if not args.skip_carl:
+        single = {"CARL 1.1.1 CARLCartPole": lambda: bench_carl(args.steps), **single}
+    rates = {name: 0.0 for name in single}
+    for _ in range(args.rounds):  # alternate, so load hits every row alike
+        for name, measure in single.items():
+            rates[name] = max(rates[name], measure())
+    peers = {"gymnasium": rates["gymnasium CartPole-v1"]}
+    if not args.skip_carl:
+        peers = {"CARL": rates["CARL 1.1.1 CARLCartPole"], **peers}
+    print_table("Single env, CartPole, one step per call", list(rates.items()), peers)
 
-    for num_envs in (64, 1024):
-        rows.append(
-            (
-                f"core jit(vmap(env.step)), {num_envs} copies, no gymnasium",
-                bench_core(num_envs, args.steps * 10),
+    vector_rows: list[tuple[str, float]] = []
+    for num_envs in VECTOR_SIZES:
+        ours = theirs = 0.0
+        for _ in range(args.rounds):
+            ours = max(ours, bench_vector(num_envs, args.steps * 10))
+            if not args.skip_envpool:
+                theirs = max(theirs, bench_envpool(num_envs, args.steps * 10))
+        vector_rows.append((f"contextrl vector env, {num_envs} copies", ours))
+        if theirs:
+            vector_rows.append(
+                (
+                    f"envpool {ENVPOOL[1][0].split('==')[1]} CartPole-v1, {num_envs} copies, 1 thread",
+                    theirs,
+                )
             )
-        )
+    if args.skip_envpool:
+        print_table("Vector env, CartPole", vector_rows, {})
+    else:
+        print("\nVector env, CartPole (ratio: contextrl / envpool at the same number of copies)")
+        width = max(len(name) for name, _ in vector_rows)
+        for (name, ours), (peer, theirs) in zip(vector_rows[::2], vector_rows[1::2], strict=True):
+            print(f"{name.ljust(width)}  {ours:10.3e}")
+            print(
+                f"{peer.ljust(width)}  {theirs:10.3e}   contextrl / envpool = {ours / theirs:.2f}"
+            )
 
-    width = max(len(name) for name, _ in rows)
-    header = f"{'what'.ljust(width)}  {'steps/s':>12}" + ("  × CARL" if carl else "")
-    print(header)
-    print("-" * len(header))
-    for name, rate in rows:
-        ratio = f"  {rate / carl:7.2f}" if carl else ""
-        print(f"{name.ljust(width)}  {rate:12.3e}{ratio}")
+    core = [
+        (f"core jit(vmap(env.step)), {n} copies, no gymnasium", bench_core(n, args.steps * 10))
+        for n in (64, 1024)
+    ]
+    print_table("Floor: the compiled step alone", core, {})
 
 
 if __name__ == "__main__":

@@ -107,7 +107,7 @@ def test_n_step_returns_stop_at_episode_ends():
 
 @pytest.mark.parametrize("distributional", [False, True])
 def test_concat_q_values_depend_on_the_context(cartpole, distributional):
-    config = dqn.DQNConfig(context_obs="concat_all", distributional=distributional)
+    config = dqn.DQNConfig(obs_context="concat_all", distributional=distributional)
     context = cartpole.default_context()
     params = dqn.init_params(config, cartpole, context, jax.random.key(2))
     q = dqn.q_values(config, cartpole, context)
@@ -129,7 +129,7 @@ def test_specialists_and_small_runs_record_their_contexts(cartpole):
         learning_starts=200,
         hidden_sizes=(8,),
         log_every=100,
-        context_obs="concat_varying",
+        obs_context="concat_varying",
         batch_size=16,
     )
     contexts = crl.sample(cartpole, {"length": crl.Uniform(0.1, 1.0)}, 2, jax.random.key(3))
@@ -154,7 +154,7 @@ def test_specialists_and_small_runs_record_their_contexts(cartpole):
         (dict(distributional=True, v_min=10.0, v_max=0.0), "C51 needs v_min < v_max"),
         (dict(tau=0.0), "tau must be > 0"),
         (dict(total_timesteps=1000, learning_starts=5000), "leaves no gradient step"),
-        (dict(context_obs="all"), "context_obs: unknown mode 'all'"),
+        (dict(obs_context="all"), "obs_context: unknown mode 'all'"),
     ],
 )
 def test_bad_config_fails_before_compilation(cartpole, change, message):
@@ -197,7 +197,7 @@ def test_dqn_and_c51_through_the_host_collector(cartpole, distributional):
         hidden_sizes=(16,),
         log_every=200,
         distributional=distributional,
-        context_obs="concat_varying",
+        obs_context="concat_varying",
     )
     result = dqn.train_gymnasium(config, "CartPole", contexts, jax.random.key(0), seed=3)
     assert result.metrics["step"].tolist() == [400, 600, 800, 1000, 1200]

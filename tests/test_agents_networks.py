@@ -43,6 +43,16 @@ def test_varying_features_of_sets_and_specs():
     spec = {"pole_length": crl.Uniform(0.25, 0.75), "gravity": crl.Constant(5.0), "tau": 0.01}
     assert varying_features(space, spec) == ("length",)
     inputs = context_input("concat_varying", space, spec)
-    assert inputs.indices == (space.names.index("length"),)
+    assert inputs.view.features == ("length",)
     with pytest.raises(ConfigError, match="no context feature varies"):
         context_input("concat_varying", space, env.default_context())
+
+
+def test_agents_and_environments_share_one_context_transform():
+    env = crl.make("CartPole")
+    context = env.context(length=0.5, gravity=20.0)
+    seen_by_env = env.with_obs_context("all", normalize=True).reset(jax.random.key(0), context)[1]
+    agent_input = context_input("concat_all", env.context_space, env.default_context())
+    np.testing.assert_array_equal(
+        seen_by_env.obs[4:], agent_input.vector(env.context_space, context)
+    )

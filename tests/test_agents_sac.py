@@ -16,12 +16,12 @@ def pendulum():
 
 
 def test_sac_learns_pendulum_for_every_seed(pendulum):
-    """Budget: 12k steps (2 envs, 1k warm-up transitions, 5.5k actor and critic updates, 64×64
+    """Budget: 16k steps (2 envs, 1k warm-up transitions, 7.5k actor and critic updates, 64×64
     MLPs), 2 seeds in one vmapped call. Every seed's deterministic policy averages >= −250 over 10
     episodes at the default context.
     """
     config = sac.SACConfig(
-        total_timesteps=12_000,
+        total_timesteps=16_000,
         num_envs=2,
         hidden_sizes=(64, 64),
         learning_starts=1000,
@@ -48,7 +48,7 @@ def test_vmapped_seeds_equal_single_runs(pendulum):
         learning_starts=200,
         log_every=100,
         batch_size=16,
-        context_obs="gated",
+        obs_context="gated",
     )
     contexts = crl.sample(pendulum, {"g": crl.Uniform(5.0, 15.0)}, 4, jax.random.key(2))
     train = sac.make_train(config, pendulum, contexts)
@@ -71,7 +71,7 @@ def test_context_reaches_the_policy(pendulum):
     context = pendulum.default_context()
     heavy = pendulum.context(m=3.0, g=15.0)
     for mode, differs in (("concat_all", True), ("hidden", False), ("gated", False)):
-        config = sac.SACConfig(context_obs=mode, hidden_sizes=(16,))
+        config = sac.SACConfig(obs_context=mode, hidden_sizes=(16,))
         params = sac.init_params(config, pendulum, context, jax.random.key(4))
         if mode == "concat_all":  # the initial head is small: scale it so the action moves
             params["actor"]["out"]["kernel"] = params["actor"]["out"]["kernel"] * 100
@@ -89,7 +89,7 @@ def test_context_reaches_the_policy(pendulum):
         (dict(tau=0.0), "tau must be > 0"),
         (dict(gamma=-0.1), "gamma must be >= 0"),
         (dict(total_timesteps=5000), "leaves no full logging period"),
-        (dict(context_obs="concat"), "context_obs: unknown mode 'concat'"),
+        (dict(obs_context="concat"), "obs_context: unknown mode 'concat'"),
     ],
 )
 def test_bad_config_fails_before_compilation(pendulum, change, message):

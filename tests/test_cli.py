@@ -94,3 +94,14 @@ def test_assignment_parsing():
     assert parse_grid("length=0.25, 0.5") == ("length", [0.25, 0.5])
     with pytest.raises(crl.ContextError):
         parse_assignments(["length"])
+
+
+def test_the_environment_docs_are_up_to_date():
+    from pathlib import Path
+
+    from contextrl.cli import environments_markdown
+
+    page = Path(__file__).resolve().parents[1] / "docs" / "environments.md"
+    assert page.read_text() == environments_markdown(), (
+        "docs/environments.md is stale: run `contextrl docs` and commit the result"
+    )

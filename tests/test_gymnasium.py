@@ -6,8 +6,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import contextrl as crl
+from contextrl.context import RESAMPLED_ID
 from contextrl.gymnasium import ContextualGymEnv, gym_id, register_envs
-from contextrl.gymnasium.schedule import RESAMPLED_ID
 
 LENGTHS = [{"length": 0.25}, {"length": 1.0}]
 OBS_MODES = [
@@ -167,7 +167,7 @@ def test_dict_observation_splits_obs_and_context():
         ({"contexts": {"length": crl.Uniform(0.1, 9.0)}}, "outside the feature's bounds"),
         ({"contexts": {"length": crl.Uniform(0.1, 1)}, "context_selector": "random"}, "drop"),
         ({"contexts": []}, "contexts must be"),
-        ({"render_mode": "human"}, "render_mode"),
+        ({"render_mode": "ansi"}, "render_mode"),
         ({"max_steps": 0}, "max_steps"),
     ],
 )

@@ -21,8 +21,8 @@ def _ink(frame: np.ndarray) -> int:
         ("CartPole", "length", 0.25, 1.5),
         ("Pendulum", "l", 0.5, 1.8),
         ("Acrobot", "LINK_LENGTH_2", 0.3, 1.0),
-        ("MountainCar", "max_position", 0.3, 1.2),
-        ("MountainCarContinuous", "max_position", 0.3, 1.2),
+        ("MountainCar", "max_position", 0.5, 1.2),
+        ("MountainCarContinuous", "max_position", 0.5, 1.2),
     ],
 )
 def test_a_larger_context_is_drawn_larger(env_id, feature, small, large):

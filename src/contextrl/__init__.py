@@ -6,10 +6,6 @@ contexts = crl.sample(env, {"length": crl.Uniform(0.25, 0.75)}, n=4096, key=jax.
 state, ts = jax.vmap(env.reset)(keys, contexts)
 """
 
-from contextrl.xla_flags import xla_cpu_workaround
-
-xla_cpu_workaround()  # before anything starts JAX's CPU backend
-
 from contextrl import envs as _envs  # noqa: F401  (registers the environments)
 from contextrl.context import (
     Categorical,

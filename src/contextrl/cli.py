@@ -18,6 +18,7 @@ import numpy as np
 
 import contextrl as crl
 from contextrl.context.features import ContextError, ContextSpace
+from contextrl.xla_flags import xla_cpu_workaround
 
 
 # ---- tables ---------------------------------------------------------------------------------------
@@ -360,6 +361,7 @@ USER_ERRORS = (ValueError, KeyError, NotImplementedError, OSError, ImportError)
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``contextrl`` command: a user error prints one line and exits with status 2
     (``--debug`` shows the traceback instead); Ctrl-C exits with status 130."""
+    xla_cpu_workaround()  # before this process starts JAX's CPU backend
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     args = build_parser().parse_args([a for a in argv if a != "--debug"])

@@ -1,4 +1,10 @@
-"""XLA:CPU settings contextrl applies before JAX starts its CPU backend (importing contextrl does it)."""
+"""XLA:CPU settings the ``contextrl`` command and the experiment runner apply before JAX starts.
+
+Importing contextrl changes no process-wide setting. A library user who trains many agents in one
+vmapped call sets the flag before JAX computes anything: ``export
+XLA_FLAGS=--xla_cpu_enable_concurrency_optimized_scheduler=false`` in the shell, or call
+:func:`xla_cpu_workaround` first thing in the script.
+"""
 
 import os
 
@@ -8,7 +14,7 @@ def xla_cpu_workaround() -> None:
 
     With it, large vmapped training programs (e.g. 128 PPO agents in one call, jaxlib 0.10) can wedge
     forever: every pool thread idle, the executable never completing. Takes effect only if called before
-    JAX creates its CPU backend, which is why importing contextrl calls it first.
+    JAX creates its CPU backend: the CLI's ``main``, the experiment runner and its Ray workers call it.
     """
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_cpu_enable_concurrency_optimized_scheduler" not in flags:

@@ -1,7 +1,7 @@
 """Baseline agents in JAX (PPO, DQN/C51, SAC): each training run is one compiled function.
 
 from contextrl.agents import ppo, evaluate
-train = ppo.make_train(ppo.PPOConfig(context_obs="concat_varying"), env, train_contexts)
+train = ppo.make_train(ppo.PPOConfig(obs_context="concat_varying"), env, train_contexts)
 result = jax.jit(jax.vmap(train))(jax.random.split(key, 10))      # 10 seeds at once
 policy = ppo.make_policy(config, env, train_contexts)
 returns = evaluate(policy, params, env, test_contexts, episodes=10, key=key)

@@ -45,7 +45,7 @@ def check_env(env: Any, agent: str) -> None:
     if not env.obs_context.hidden:
         raise ConfigError(
             f"{env.name} already appends {list(env.obs_context.features)} to its observation; the "
-            f"agent builds its own context input (context_obs), so pass the environment without "
+            f"agent builds its own context input (obs_context), so pass the environment without "
             f"obs_context_features"
         )
 

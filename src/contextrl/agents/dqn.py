@@ -95,10 +95,11 @@ class DQNConfig:
     """Widths of the hidden layers."""
     activation: str = "relu"
     """Hidden activation: "relu" or "tanh"."""
-    context_obs: str = "hidden"
+    obs_context: str = "hidden"
     """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "random"
-    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    context_selector: str = "round_robin"
+    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
+    or "static"; copy i of N runs global episodes i, i + N, …"""
     log_every: int = 1000
     """Environment steps per metrics row (rounded to whole gradient steps)."""
     episode_log_size: int = 1000
@@ -226,7 +227,7 @@ def _networks(config: DQNConfig, env, train_contexts) -> _Networks:
     check_env(env, "DQN")
     if not isinstance(env.action_space, Discrete):
         raise ConfigError(f"DQN/C51 needs a Discrete action space; {env.name} has a continuous one")
-    context = context_input(config.context_obs, env.context_space, train_contexts)
+    context = context_input(config.obs_context, env.context_space, train_contexts)
     return _build_networks(config, env.name, env.action_space, env.observation_space, context)
 
 
@@ -354,7 +355,7 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         if params is None:  # given params: continue training them (population-based tuning)
             params = nets.q.init(init_key)
         opt_state = optimizer.init(params)
-        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs
         example = {
@@ -371,12 +372,10 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
 
         def env_step(carry, action_fn):
             env_state, obs, replay, log, step, key = carry
-            key, action_key, step_key = jax.random.split(key, 3)
+            key, action_key = jax.random.split(key)
             context_vector = context_of(env_state.context)
             action = action_fn(obs, context_vector, action_key).astype(jnp.int32)
-            env_state, timestep = jax.vmap(cenv.step)(
-                jax.random.split(step_key, num_envs), env_state, action
-            )
+            env_state, timestep = cenv.step_copies(env_state, action)
             step = step + num_envs
             replay = replay.add(
                 {
@@ -466,7 +465,7 @@ def train_gymnasium(
         env_id,
         config.num_envs,
         train_contexts,
-        config.context_obs,
+        config.obs_context,
         selector=config.context_selector,
         seed=seed,
         vectorization=vectorization,

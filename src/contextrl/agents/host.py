@@ -1,7 +1,7 @@
 """One host stepping loop for every agent: N copies of a registered environment through gymnasium's
 public vector API, for environments that are not JAX functions (dm_control, Box2D, RNA…).
 
-    collector = HostCollector("DmcWalker", num_envs=4, contexts=contexts, context_obs="concat_all")
+    collector = HostCollector("DmcWalker", num_envs=4, contexts=contexts, obs_context="concat_all")
     step = collector.step(env_actions)      # obs, context input, rewards, ends, final observations
 
 The collector owns what every agent's host training needs and nothing algorithm-specific: the vector
@@ -50,7 +50,7 @@ class HostCollector:
         env_id: str,
         num_envs: int,
         contexts: Any,
-        context_obs: str = "hidden",
+        obs_context: str = "hidden",
         *,
         selector: str = "random",
         seed: int = 0,
@@ -59,7 +59,7 @@ class HostCollector:
         **env_kwargs: Any,
     ):
         """``context`` fixes the agent's context input (an agent trained on other contexts sees
-        the features it was trained with); by default it follows ``context_obs`` and ``contexts``."""
+        the features it was trained with); by default it follows ``obs_context`` and ``contexts``."""
         resampled = isinstance(contexts, Mapping) and any(
             isinstance(v, DISTRIBUTIONS) for v in contexts.values()
         )
@@ -77,11 +77,9 @@ class HostCollector:
             getattr(self.envs, "context_space", None) or self.envs.get_attr("context_space")[0]
         )
         if context is None:
-            context = context_input(context_obs, self.space, contexts)
+            context = context_input(obs_context, self.space, contexts)
         self.context_input = context
-        self._lower = np.asarray(context.lower, np.float32)
-        self._span = np.maximum(np.asarray(context.upper, np.float32) - self._lower, 1e-8)
-        self._names = [self.space.names[i] for i in context.indices]
+        self._names = context.view.features
         self.steps = 0
         self._running_return = np.zeros(num_envs)
         self._running_length = np.zeros(num_envs, np.int64)
@@ -108,7 +106,9 @@ class HostCollector:
             columns.append(values.astype(np.float32))
         if not columns:
             return np.zeros((self.num_envs, 0), np.float32)
-        return np.clip((np.stack(columns, axis=-1) - self._lower) / self._span, 0.0, 1.0)
+        return np.asarray(
+            self.context_input.view.normalized(self.space, np.stack(columns, axis=-1))
+        )
 
     def step(self, env_actions) -> HostStep:
         """Step every copy with ``env_actions`` (in the environment's action space)."""

@@ -1,7 +1,8 @@
 """Network pieces shared by every agent: MLPs in plain JAX and the context encoders.
 
 Parameters are nested dicts of arrays (a pytree), so they vmap over seeds, save to a checkpoint and
-load back without a framework. How the agent sees the context is one of four modes:
+load back without a framework. How the agent sees the context (``obs_context``, the name environments
+use too, with the same normaliser: :class:`contextrl.context.ContextObservation`) is one of four modes:
 
 - ``hidden``: the network gets the observation only (the context-oblivious baseline);
 - ``concat_all``: every context feature, normalised by its bounds to [0, 1], is appended to the input;
@@ -18,15 +19,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contextrl.context.distributions import DISTRIBUTIONS, Constant
 from contextrl.context.features import ContextBase, ContextSpace
+from contextrl.context.observation import ContextObservation
+from contextrl.context.schedule import resolve_contexts
 
 CONTEXT_MODES = ("hidden", "concat_all", "concat_varying", "gated")
 ACTIVATIONS = {"tanh": jnp.tanh, "relu": jax.nn.relu}
@@ -69,47 +71,35 @@ def dense(params: Params, x: jax.Array) -> jax.Array:
 
 @dataclasses.dataclass(frozen=True)
 class ContextInput:
-    """Which context features a network sees (indices into the context space) and their bounds."""
+    """How a network is conditioned (``mode``) on which features (``view``, normalised to [0, 1])."""
 
     mode: str = "hidden"
-    indices: tuple[int, ...] = ()
-    lower: tuple[float, ...] = ()
-    upper: tuple[float, ...] = ()
+    view: ContextObservation = ContextObservation()
 
     @property
     def size(self) -> int:
-        return len(self.indices)
+        return len(self.view.features)
 
     def vector(self, space: ContextSpace, context: Any) -> jax.Array:
         """The normalised context features (in [0, 1]) the network sees; empty when hidden."""
-        if not self.indices:
+        if self.view.hidden:
             return jnp.zeros(jnp.shape(getattr(context, space.names[0])) + (0,), jnp.float32)
-        values = space.to_array(context)[..., list(self.indices)]
-        lower = np.asarray(self.lower, np.float32)
-        span = np.maximum(np.asarray(self.upper, np.float32) - lower, 1e-8)
-        return jnp.clip((values - lower) / span, 0.0, 1.0)
+        return self.view.values(space, context)
 
 
 def varying_features(space: ContextSpace, train_contexts: Any) -> tuple[str, ...]:
     """Features that vary in a context set, or that a distribution spec draws non-constantly."""
-    if isinstance(train_contexts, ContextBase):
-        if not train_contexts.batch_shape:
-            return ()
-        return space.varying(train_contexts)
-    if isinstance(train_contexts, Mapping):
-        return tuple(
-            space.resolve(name)
-            for name, value in train_contexts.items()
-            if isinstance(value, DISTRIBUTIONS) and not isinstance(value, Constant)
-        )
-    return ()
+    if isinstance(train_contexts, ContextBase) and not train_contexts.batch_shape:
+        return ()
+    schedule = resolve_contexts(space, train_contexts)
+    return schedule.observation("varying", normalize=True, noise=0.0).features
 
 
 def context_input(mode: str, space: ContextSpace, train_contexts: Any) -> ContextInput:
     """Resolve a context mode against the environment's context space and the training contexts."""
     if mode not in CONTEXT_MODES:
         raise ConfigError(
-            f"context_obs: unknown mode {mode!r}; choose one of {list(CONTEXT_MODES)}"
+            f"obs_context: unknown mode {mode!r}; choose one of {list(CONTEXT_MODES)}"
         )
     if mode == "hidden":
         return ContextInput()
@@ -117,18 +107,12 @@ def context_input(mode: str, space: ContextSpace, train_contexts: Any) -> Contex
         names = varying_features(space, train_contexts)
         if not names:
             raise ConfigError(
-                "context_obs='concat_varying': no context feature varies in the training contexts, "
+                "obs_context='concat_varying': no context feature varies in the training contexts, "
                 "so there is nothing to append; use 'hidden' or 'concat_all'"
             )
     else:
         names = space.names
-    indices = tuple(space.names.index(n) for n in names)
-    return ContextInput(
-        mode,
-        indices,
-        tuple(float(space.lower[i]) for i in indices),
-        tuple(float(space.upper[i]) for i in indices),
-    )
+    return ContextInput(mode, ContextObservation(features=tuple(names), normalize=True))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Proximal Policy Optimisation (clipped objective, GAE), the whole training run one JAX function.
 
-    config = ppo.PPOConfig(total_timesteps=500_000, context_obs="concat_varying")
+    config = ppo.PPOConfig(total_timesteps=500_000, obs_context="concat_varying")
     train = ppo.make_train(config, env, train_contexts)
     result = jax.jit(train)(key)                          # one seed
     results = jax.jit(jax.vmap(train))(keys)              # many seeds in one call
@@ -81,10 +81,11 @@ class PPOConfig:
     """Hidden activation: "tanh" or "relu"."""
     log_std_init: float = 0.0
     """Initial log standard deviation of the Gaussian policy (continuous actions)."""
-    context_obs: str = "hidden"
+    obs_context: str = "hidden"
     """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "random"
-    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    context_selector: str = "round_robin"
+    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
+    or "static"; copy i of N runs global episodes i, i + N, …"""
     episode_log_size: int = 1000
     """How many of the most recent episodes the result keeps individually."""
     progress_every: int = 0
@@ -153,7 +154,7 @@ def _networks(config: PPOConfig, env, train_contexts) -> _Networks:
     obs_shape = env.observation_space.shape
     if len(obs_shape) != 1:
         raise ConfigError(f"PPO needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
-    context = context_input(config.context_obs, env.context_space, train_contexts)
+    context = context_input(config.obs_context, env.context_space, train_contexts)
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
     actor = ConditionedMLP(obs_shape[0], action_size, out_scale=0.01, **common)
     critic = ConditionedMLP(obs_shape[0], 1, out_scale=1.0, **common)
@@ -332,19 +333,17 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
         if params is None:  # given params: continue training them (population-based tuning)
             params = _init_params(nets, config, init_key)
         opt_state = optimizer.init(params)
-        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
 
         def env_step(carry, _):
             params, env_state, obs, log, step, key = carry
-            key, action_key, step_key = jax.random.split(key, 3)
+            key, action_key = jax.random.split(key)
             context_vector = context_of(env_state.context)
             action, log_prob = _sample(nets, params, obs, context_vector, action_key)
             state_value = value(params, obs, context_vector)
-            env_state, timestep = jax.vmap(cenv.step)(
-                jax.random.split(step_key, num_envs), env_state, _env_action(nets, action)
-            )
+            env_state, timestep = cenv.step_copies(env_state, _env_action(nets, action))
             step = step + num_envs
             # A time-limit cut is not a failure: bootstrap from the final observation's value.
             cut = timestep.truncated & ~timestep.terminated
@@ -401,7 +400,7 @@ def train_gymnasium(
         env_id,
         config.num_envs,
         train_contexts,
-        config.context_obs,
+        config.obs_context,
         selector=config.context_selector,
         seed=seed,
         vectorization=vectorization,

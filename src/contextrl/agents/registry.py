@@ -5,7 +5,7 @@ compare agent names.
     register_agent(Agent("ppo_wide", ppo.PPOConfig, ppo.make_train, ppo.make_policy,
                          defaults=lambda env: {"hidden_sizes": (256, 256)}))
 
-An agent is a config dataclass (with ``validate()`` and a ``context_obs`` field), ``make_train(config,
+An agent is a config dataclass (with ``validate()`` and a ``obs_context`` field), ``make_train(config,
 env, train_contexts) -> train(key, contexts)`` and ``make_policy(config, env, train_contexts) ->
 policy(params, obs, ctx, key)``. ``defaults(env_name)`` gives per-environment settings (the paper's)
 that the user's options override. An agent without ``make_train`` is not trained (the random baseline).
@@ -26,7 +26,7 @@ import numpy as np
 from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.networks import ConfigError
 
-CONTEXT_OPTION = "context_obs"  # the config field that says how an agent sees the context
+CONTEXT_OPTION = "obs_context"  # the config field that says how an agent sees the context
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +58,7 @@ class Agent:
             return []
         return sorted(f.name for f in dataclasses.fields(self.config_type))
 
-    def config(self, env_name: str, options: Mapping[str, Any], context_obs: str = "hidden"):
+    def config(self, env_name: str, options: Mapping[str, Any], obs_context: str = "hidden"):
         """The validated config: the environment's defaults, then ``options``, then the visibility."""
         options = dict(options)
         if self.config_type is None:
@@ -70,7 +70,7 @@ class Agent:
             raise ConfigError(
                 f"unknown {self.name} option(s) {unknown}; valid: {self.option_names()}"
             )
-        values = {**self.defaults(env_name), **options, CONTEXT_OPTION: context_obs}
+        values = {**self.defaults(env_name), **options, CONTEXT_OPTION: obs_context}
         try:
             config = self.config_type(**values)
         except TypeError as error:

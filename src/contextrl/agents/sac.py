@@ -1,7 +1,7 @@
 """Soft Actor-Critic for continuous actions (twin critics, tanh-squashed Gaussian policy, automatic
 entropy tuning); the whole run one JAX function.
 
-    config = sac.SACConfig(context_obs="concat_varying")
+    config = sac.SACConfig(obs_context="concat_varying")
     config = sac.paper_config("Pendulum")               # the paper's SAC hyper-parameters
     train = sac.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
@@ -80,10 +80,11 @@ class SACConfig:
     """Widths of the hidden layers of actor and critics."""
     activation: str = "relu"
     """Hidden activation: "relu" or "tanh"."""
-    context_obs: str = "hidden"
+    obs_context: str = "hidden"
     """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "random"
-    """How a context set is visited at each reset: "random", "round_robin" or "static"."""
+    context_selector: str = "round_robin"
+    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
+    or "static"; copy i of N runs global episodes i, i + N, …"""
     log_every: int = 1000
     """Environment steps per metrics row (rounded to whole actor updates)."""
     episode_log_size: int = 1000
@@ -189,7 +190,7 @@ class _Networks:
 def _networks(config: SACConfig, env, train_contexts) -> _Networks:
     config.validate()
     check_env(env, "SAC")
-    context = context_input(config.context_obs, env.context_space, train_contexts)
+    context = context_input(config.obs_context, env.context_space, train_contexts)
     return _build_networks(config, env.name, env.action_space, env.observation_space, context)
 
 
@@ -337,7 +338,7 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
         params, target_critic, opt_states = init(init_key, params)  # given: continue them
-        env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
+        env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs
         example = {
@@ -354,12 +355,10 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
 
         def env_step(carry, action_fn):
             env_state, obs, replay, log, step, key = carry
-            key, action_key, step_key = jax.random.split(key, 3)
+            key, action_key = jax.random.split(key)
             context_vector = context_of(env_state.context)
             action = action_fn(obs, context_vector, action_key)
-            env_state, timestep = jax.vmap(cenv.step)(
-                jax.random.split(step_key, num_envs), env_state, nets.to_env(action)
-            )
+            env_state, timestep = cenv.step_copies(env_state, nets.to_env(action))
             step = step + num_envs
             replay = replay.add(
                 {
@@ -460,7 +459,7 @@ def train_gymnasium(
         env_id,
         config.num_envs,
         train_contexts,
-        config.context_obs,
+        config.obs_context,
         selector=config.context_selector,
         seed=seed,
         vectorization=vectorization,

@@ -11,11 +11,9 @@ import io
 from collections.abc import Mapping, Sequence
 
 import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from contextrl.analysis.intervals import Interval, curve_band  # noqa: E402
 
@@ -24,8 +22,14 @@ def to_png(figure: Figure, dpi: int = 100) -> bytes:
     """The figure as PNG bytes; the figure is closed afterwards."""
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(figure)
     return buffer.getvalue()
+
+
+def _subplots(rows: int = 1, columns: int = 1, figsize=None, layout=None, **kwargs):
+    """A new Figure and its axes, like ``pyplot.subplots`` but outside pyplot (no backend chosen)."""
+    figure = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(figure)  # draws to memory, whatever backend the process uses
+    return figure, figure.subplots(rows, columns, **kwargs)
 
 
 def ecdf_values(values) -> tuple[np.ndarray, np.ndarray]:
@@ -36,7 +40,7 @@ def ecdf_values(values) -> tuple[np.ndarray, np.ndarray]:
 
 def ecdf(returns_by_label: Mapping[str, Sequence[float]], title: str = "", xlabel: str = "return"):
     """One eCDF line per label (further right is better)."""
-    figure, axis = plt.subplots(figsize=(5, 3.5))
+    figure, axis = _subplots(figsize=(5, 3.5))
     for label, values in returns_by_label.items():
         x, y = ecdf_values(values)
         axis.step(x, y, where="post", label=str(label))
@@ -52,7 +56,7 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
     columns = min(3, len(features))
     rows = -(-len(features) // columns)
     # constrained layout keeps the figure title, panel titles and colour bar from overlapping
-    figure, axes = plt.subplots(
+    figure, axes = _subplots(
         rows,
         columns,
         figsize=(4.2 * columns, 3.2 * rows),
@@ -60,7 +64,7 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
         sharey=True,
         layout="constrained",
     )
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     for axis, name in zip(axes.ravel(), features, strict=False):
         magnitudes = sorted(returns[name])
         top = max(magnitudes[-1], 1e-9)
@@ -72,7 +76,7 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
     for axis in axes.ravel()[len(features) :]:
         axis.axis("off")
     axes[0, 0].set_ylabel("proportion")
-    mappable = plt.cm.ScalarMappable(
+    mappable = matplotlib.cm.ScalarMappable(
         cmap=cmap, norm=matplotlib.colors.Normalize(0, max(max(r) for r in returns.values()))
     )
     figure.colorbar(mappable, ax=axes, label="magnitude A (× default)", shrink=0.8)
@@ -90,7 +94,7 @@ def training_curves(
     """Mean training curve per label with a 95 % bootstrap band over runs (runs × points).
 
     ``steps`` is shared, or a mapping label → steps for curves logged at different steps."""
-    figure, axis = plt.subplots(figsize=(5.5, 3.5))
+    figure, axis = _subplots(figsize=(5.5, 3.5))
     for label, curves in curves_by_label.items():
         x = steps[label] if isinstance(steps, Mapping) else steps
         mean, low, high = curve_band(curves, seed=seed)
@@ -104,7 +108,7 @@ def training_curves(
 
 def histograms(returns_by_label: Mapping[str, Sequence[float]], title: str = "", bins: int = 20):
     """Overlaid histograms of test returns."""
-    figure, axis = plt.subplots(figsize=(5, 3.5))
+    figure, axis = _subplots(figsize=(5, 3.5))
     every = np.concatenate([np.ravel(v) for v in returns_by_label.values()])
     edges = np.histogram_bin_edges(every, bins=bins)
     for label, values in returns_by_label.items():
@@ -118,7 +122,7 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
     """rliable-style interval plot: a panel per metric, a bar (CI) and tick (point) per label."""
     labels = list(results)
     metrics = list(next(iter(results.values())))
-    figure, axes = plt.subplots(
+    figure, axes = _subplots(
         1,
         len(metrics),
         figsize=(3.2 * len(metrics), 1.0 + 0.5 * len(labels)),
@@ -170,7 +174,7 @@ def heatmap(
     count, _, _ = np.histogram2d(x, y, bins=(xedges, yedges))
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(count > 0, total / count, np.nan)
-    figure, axis = plt.subplots(figsize=(5, 4))
+    figure, axis = _subplots(figsize=(5, 4))
     mesh = axis.pcolormesh(xedges, yedges, mean.T, cmap="viridis", vmin=vmin, vmax=vmax)
     figure.colorbar(mesh, ax=axis, label="mean return")
     for x0, x1, y0, y1 in regions:
@@ -194,7 +198,7 @@ def schedules(
     names = list(panels)
     columns = min(3, len(names))
     rows = -(-len(names) // columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.0 * rows), squeeze=False)
+    figure, axes = _subplots(rows, columns, figsize=(4.2 * columns, 3.0 * rows), squeeze=False)
     for axis, name in zip(axes.ravel(), names, strict=False):
         for label, (x, y) in panels[name].items():
             axis.step(np.asarray(x), np.asarray(y), where="post", label=str(label), alpha=0.8)
@@ -214,7 +218,8 @@ def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
     top = {a: max(float(properties[n][a]) for n in names) or 1.0 for a in axes_names}
     angles = np.linspace(0, 2 * np.pi, len(axes_names), endpoint=False)
     closed = np.append(angles, angles[0])
-    figure = plt.figure(figsize=(5, 5))
+    figure = Figure(figsize=(5, 5))
+    FigureCanvasAgg(figure)
     axis = figure.add_subplot(projection="polar")
     for name in names:
         values = [float(properties[name][a]) / top[a] for a in axes_names]
@@ -230,7 +235,7 @@ def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
 
 def bars(values: Mapping[str, float], *, ylabel: str, title: str = ""):
     """One bar per label (e.g. the exact optimality gap of each tabular cMDP)."""
-    figure, axis = plt.subplots(figsize=(max(4, 0.7 * len(values)), 3.5))
+    figure, axis = _subplots(figsize=(max(4, 0.7 * len(values)), 3.5))
     axis.bar(range(len(values)), list(values.values()), color="tab:blue")
     axis.set_xticks(range(len(values)), list(values), rotation=45, ha="right", fontsize="small")
     axis.set(ylabel=ylabel, title=title)
@@ -242,7 +247,7 @@ def scatter(
     x, y_by_label: Mapping[str, Sequence[float]], *, xlabel: str, ylabel: str, title: str = ""
 ):
     """Points per label against one feature (e.g. the per-context gap against pole length)."""
-    figure, axis = plt.subplots(figsize=(5, 3.5))
+    figure, axis = _subplots(figsize=(5, 3.5))
     for label, y in y_by_label.items():
         axis.scatter(x, y, s=12, label=str(label))
     axis.axhline(0.0, color="gray", lw=0.8)
@@ -268,7 +273,7 @@ def return_vs_feature(
     shaded as the training range (a line when low == high); ``reference`` draws a dashed horizontal
     line (e.g. the return at the default context).
     """
-    figure, axis = plt.subplots(figsize=(5.5, 3.6))
+    figure, axis = _subplots(figsize=(5.5, 3.6))
     if train_range is not None:
         low, high = train_range
         if high > low:

@@ -12,6 +12,7 @@ from contextrl.context.distributions import (
     sample,
 )
 from contextrl.context.features import (
+    Coherence,
     ContextBase,
     ContextError,
     ContextSpace,
@@ -20,7 +21,9 @@ from contextrl.context.features import (
     feature,
 )
 from contextrl.context.observation import ContextObservation
+from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 from contextrl.context.selectors import (
+    DEFAULT_SELECTOR,
     Custom,
     FromSet,
     RandomSelector,
@@ -31,11 +34,15 @@ from contextrl.context.selectors import (
 )
 
 __all__ = [
+    "DEFAULT_SELECTOR",
+    "RESAMPLED_ID",
     "Categorical",
+    "Coherence",
     "Constant",
     "ContextBase",
     "ContextError",
     "ContextObservation",
+    "ContextSchedule",
     "ContextSpace",
     "Custom",
     "Feature",
@@ -53,5 +60,6 @@ __all__ = [
     "context_type",
     "feature",
     "make_selector",
+    "resolve_contexts",
     "sample",
 ]

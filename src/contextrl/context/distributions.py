@@ -230,8 +230,32 @@ def _space_of(target: Any) -> ContextSpace:
     return space
 
 
+def support(distribution: Distribution, feature: Feature) -> tuple[float, float]:
+    """The smallest and largest value ``distribution`` can draw for ``feature`` (already checked)."""
+    if isinstance(distribution, (Uniform, LogUniform)):
+        return float(distribution.low), float(distribution.high)
+    if isinstance(distribution, Normal):
+        low, high = distribution._range(feature)
+        return float(low), float(high)
+    if isinstance(distribution, RelativeUniform):
+        absolute = distribution._absolute(feature)
+        return float(absolute.low), float(absolute.high)
+    if isinstance(distribution, Categorical):
+        values = distribution._values(feature).astype(np.float64)
+        return float(values.min()), float(values.max())
+    if isinstance(distribution, Scaled):
+        value = distribution._value(feature)
+    else:  # Constant
+        value = feature.coerce(distribution.value)
+    return float(value), float(value)
+
+
 def check_spec(target: Any, spec: Mapping[str, Any]) -> dict[str, Distribution]:
-    """Resolve names and validate every distribution against its feature; plain numbers become Constant."""
+    """Resolve names and validate every distribution against its feature; plain numbers become Constant.
+
+    A spec that can draw a context breaking one of the space's coherence rules is refused here, so
+    ``sample`` and resampling at reset never yield a context the environment would refuse.
+    """
     space = _space_of(target)
     resolved: dict[str, Distribution] = {}
     for name, distribution in spec.items():
@@ -240,6 +264,8 @@ def check_spec(target: Any, spec: Mapping[str, Any]) -> dict[str, Distribution]:
             distribution = Constant(distribution)
         distribution.check(space.features[canonical])
         resolved[canonical] = distribution
+    ranges = {name: support(d, space.features[name]) for name, d in resolved.items()}
+    space.check_ranges(ranges, "this distribution spec")
     return resolved
 
 

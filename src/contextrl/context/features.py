@@ -9,8 +9,9 @@ checker all read those declarations, so they can never disagree.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import jax
@@ -128,6 +129,21 @@ def feature(
     return dataclasses.field(default=default, metadata={"feature": spec})
 
 
+@dataclasses.dataclass(frozen=True)
+class Coherence:
+    """A rule a whole context must satisfy, tying features together (a goal inside the track, …).
+
+    ``holds(*values)`` takes the features' values (NumPy arrays, in the order of ``features``) and says
+    where the rule holds. Rules are linear in their features, so a distribution spec is checked at the
+    corners of its features' ranges: a spec that can draw an incoherent context is refused up front.
+    """
+
+    features: tuple[str, ...]
+    holds: Callable[..., Any]
+    requirement: str  # the rule as users read it: "goal_position <= max_position"
+    why: str  # what would go wrong otherwise
+
+
 def _is_concrete(value: Any) -> bool:
     return not isinstance(value, jax.core.Tracer)
 
@@ -176,15 +192,24 @@ def context_type(cls):
     jax.tree_util.register_dataclass(
         data_cls, data_fields=[f.name for f in features], meta_fields=[]
     )
-    data_cls.space = ContextSpace(data_cls, tuple(features))
+    rules = tuple(getattr(cls, "coherence", ()))
+    data_cls.space = ContextSpace(data_cls, tuple(features), rules)
+    data_cls.space.check_coherence(data_cls.space.default())  # a declaration bug, caught at import
     return data_cls
 
 
 class ContextSpace:
     """Everything known about the contexts of one environment: names, bounds, validation, conversion."""
 
-    def __init__(self, context_class: type, features: tuple[Feature, ...]):
+    def __init__(
+        self, context_class: type, features: tuple[Feature, ...], rules: tuple[Coherence, ...] = ()
+    ):
         self.context_class = context_class
+        self.rules = rules
+        for rule in rules:
+            for name in rule.features:
+                if name not in {f.name for f in features}:
+                    raise TypeError(f"coherence rule {rule.requirement!r} names unknown {name!r}")
         self.features: dict[str, Feature] = {f.name: f for f in features}
         self.names: tuple[str, ...] = tuple(self.features)
         self._aliases = {alias: f.name for f in features for alias in f.aliases}
@@ -236,7 +261,48 @@ class ContextSpace:
         if batch_shapes:  # one batched value makes a batch: the scalar features repeat along it
             (shape,) = batch_shapes
             merged = {n: jnp.broadcast_to(v, shape) for n, v in merged.items()}
-        return self.context_class(**merged)
+        context = self.context_class(**merged)
+        self.check_coherence(context)
+        return context
+
+    def check_coherence(self, context) -> None:
+        """Raise ContextError naming the features of the first rule a (batch of) context(s) breaks."""
+        for rule in self.rules:
+            values = [getattr(context, name) for name in rule.features]
+            if not all(_is_concrete(v) for v in values):
+                continue
+            arrays = [np.asarray(v, np.float64) for v in values]
+            broken = ~np.broadcast_to(np.asarray(rule.holds(*arrays), bool), np.shape(arrays[0]))
+            if broken.any():
+                where = (
+                    np.unravel_index(int(np.argmax(broken)), broken.shape) if broken.ndim else ()
+                )
+                got = ", ".join(
+                    f"{n}={float(a[where]):g}" for n, a in zip(rule.features, arrays, strict=True)
+                )
+                at = f" (context {where[0]} of the batch)" if where else ""
+                raise ContextError(
+                    f"{self.context_class.__name__}: {rule.requirement} is required ({rule.why}); "
+                    f"got {got}{at}"
+                )
+
+    def check_ranges(self, ranges: Mapping[str, tuple[float, float]], what: str) -> None:
+        """Refuse value ranges (feature → (low, high); others at their default) that let a rule break.
+
+        The rules are linear, so checking every corner of the ranges of a rule's features is exact.
+        """
+        for rule in self.rules:
+            spans = [ranges.get(n, (float(self.features[n].default),) * 2) for n in rule.features]
+            for corner in itertools.product(*spans):
+                if not bool(rule.holds(*(np.float64(v) for v in corner))):
+                    reach = ", ".join(
+                        f"{n} in [{low:g}, {high:g}]"
+                        for n, (low, high) in zip(rule.features, spans, strict=True)
+                    )
+                    raise ContextError(
+                        f"{self.context_class.__name__}: {what} can draw contexts that break "
+                        f"{rule.requirement} ({rule.why}): {reach}"
+                    )
 
     def from_dict(self, values: Mapping[str, Any]):
         return self.make(**dict(values))
@@ -251,6 +317,7 @@ class ContextSpace:
             value = getattr(context, name)
             if _is_concrete(value):
                 f.coerce(np.asarray(value))
+        self.check_coherence(context)
 
     def to_array(self, context) -> jax.Array:
         """Features stacked on the last axis as float32, in declaration order."""

@@ -1,5 +1,8 @@
 """How much of the context the agent sees: hidden, all features, a subset, normalised, noisy.
 
+This is the one transform from a context to agent input ("obs_context"): environments append it to
+their observation (``obs_context_features=``), agents feed it to their networks (``obs_context=``).
+
 Hidden (no features) keeps the observation exactly the original environment's. Visible features are
 appended to it; normalised values are mapped to [0, 1] by the feature bounds; noise multiplies each value
 by (1 + noise · N(0, 1)) per observation (the paper's noisy-context challenge) and is clipped to bounds so
@@ -86,13 +89,20 @@ class ContextObservation:
         return low, high
 
     def values(self, space: ContextSpace, context: Any, key=None) -> jax.Array:
-        """The appended vector for one context (float32); ``key`` is needed only when noisy."""
-        values = jnp.stack([jnp.asarray(getattr(context, n), jnp.float32) for n in self.features])
-        low, high = self._bounds(space)
+        """The appended vector of a context (float32, features on the last axis; a batch of contexts
+        gives one row each); ``key`` is needed only when noisy."""
+        values = jnp.stack(
+            [jnp.asarray(getattr(context, n), jnp.float32) for n in self.features], axis=-1
+        )
         if self.noise > 0:
+            low, high = self._bounds(space)
             values = values * (1.0 + self.noise * jax.random.normal(key, values.shape))
             values = jnp.clip(values, low, high)
-        if self.normalize:
-            span = np.where(high > low, high - low, 1.0).astype(np.float32)
-            values = jnp.clip((values - low) / span, 0.0, 1.0)
-        return values
+        return self.normalized(space, values) if self.normalize else values
+
+    def normalized(self, space: ContextSpace, values):
+        """Feature values (features on the last axis) mapped to [0, 1] by their bounds: the one
+        normaliser of the context as agent input, for env observations and agents alike."""
+        low, high = self._bounds(space)
+        span = np.where(high > low, high - low, 1.0).astype(np.float32)
+        return jnp.clip((values - low) / span, 0.0, 1.0)

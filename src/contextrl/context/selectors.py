@@ -3,6 +3,9 @@
 Both are pure and jittable: a *provider* turns ``(key, episode_index)`` into ``(context, context_id)``,
 so the choice happens at reset inside a compiled loop, with no host round trip. The episode index is the
 only selector state, so a provider needs nothing besides what the environment state already carries.
+It is the *global* episode index: copy ``i`` of ``N`` runs episodes ``i, i + N, i + 2N, …``, so round
+robin over N contexts with N copies gives copy ``i`` context ``i``, and a custom selector knows which
+copy it serves (``episode % N``).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from contextrl.context.distributions import Distribution, check_spec, draw
 from contextrl.context.features import ContextError, ContextSpace
 
 SELECTORS = ("round_robin", "random", "static")
+DEFAULT_SELECTOR = "round_robin"  # the one default of every face: envs, gymnasium, agents
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,12 @@
 """The environment core: Env, TimeStep, spaces, the registry and context-scheduled environments."""
 
-from contextrl.core.contextual import ContextualEnv, ContextualState, make_provider, with_contexts
+from contextrl.core.contextual import (
+    ContextualEnv,
+    ContextualState,
+    choose_context,
+    make_provider,
+    with_contexts,
+)
 from contextrl.core.env import Env, EnvState, TimeStep, tree_where
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import EnvSpec, make, register, registered, spec
@@ -11,6 +17,7 @@ __all__ = [
     "ContextualEnv",
     "ContextualState",
     "Discrete",
+    "choose_context",
     "Env",
     "EnvSpec",
     "EnvState",

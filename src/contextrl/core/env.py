@@ -159,37 +159,44 @@ class Env:
         """One step; if the episode ends, the same call resets it under the same context."""
         return self.step_then_reset(key, state, action, context, context)
 
-    def step_then_reset(
-        self, key, state: EnvState, action, context, reset_context
-    ) -> tuple[EnvState, TimeStep]:
-        """One step under ``context``; an episode that ends restarts under ``reset_context``."""
-        noisy = self.obs_context.noise > 0
-        count = (2 if self.stochastic_transition else 1) + (2 if noisy else 0)
-        keys = list(self._keys(key, count))
-        transition_key = keys.pop() if self.stochastic_transition else key
-        reset_key = keys.pop() if self.stochastic_transition else key
-        final_obs_key, reset_obs_key = (keys.pop(), keys.pop()) if noisy else (None, None)
+    @property
+    def steps_need_key(self) -> bool:
+        """Whether a step draws random numbers (a stochastic transition or a noisy context view)."""
+        return self.stochastic_transition or self.obs_context.noise > 0
 
+    def advance(self, key, state: EnvState, action, context) -> tuple[EnvState, TimeStep]:
+        """One step under ``context`` and no restart: ``obs`` and ``final_obs`` are the same.
+
+        ``key`` is used only when :attr:`steps_need_key`.
+        """
+        transition_key, obs_key = key, None
+        if self.stochastic_transition and self.obs_context.noise > 0:
+            transition_key, obs_key = self._keys(key, 2)
+        elif self.obs_context.noise > 0:
+            obs_key = key
         physics, reward, terminated = self.transition(
             transition_key, state.physics, action, context
         )
         time = state.time + 1
-        truncated = time >= self.max_steps
-        final_obs = self._observation(physics, context, final_obs_key)
-
-        done = terminated | truncated
-        reset_physics = self.init(reset_key, reset_context)
-        reset_obs = self._observation(reset_physics, reset_context, reset_obs_key)
-        next_state = EnvState(
-            tree_where(done, reset_physics, physics), jnp.where(done, 0, time).astype(jnp.int32)
-        )
-        obs = jnp.where(done, reset_obs, final_obs)
-        return next_state, TimeStep(
+        obs = self._observation(physics, context, obs_key)
+        return EnvState(physics, time), TimeStep(
             obs,
             jnp.asarray(reward, jnp.float32),
             jnp.asarray(terminated, bool),
-            truncated,
-            final_obs,
+            time >= self.max_steps,
+            obs,
+        )
+
+    def step_then_reset(
+        self, key, state: EnvState, action, context, reset_context
+    ) -> tuple[EnvState, TimeStep]:
+        """One step under ``context``; an episode that ends restarts under ``reset_context``."""
+        step_key, reset_key = self._keys(key, 2) if self.steps_need_key else (key, key)
+        advanced, timestep = self.advance(step_key, state, action, context)
+        restarted, start = self.reset(reset_key, reset_context)
+        done = timestep.done
+        return tree_where(done, restarted, advanced), dataclasses.replace(
+            timestep, obs=jnp.where(done, start.obs, timestep.obs)
         )
 
     def check_context(self, context) -> None:

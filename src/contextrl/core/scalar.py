@@ -6,10 +6,10 @@ where a plain scalar step costs a few microseconds and a compiled call about fif
 equations use is here, with ``jax.numpy``'s meaning: ``where`` picks (both sides already computed),
 ``clip`` is ``min(max(x, low), high)``, ``stack`` builds a :class:`Vector`.
 
-An environment that offers the host path defines ``host_transition(state, action, context, rng) ->
+An environment that offers the host path defines ``host_transition(state, action, context) ->
 (next_state, reward, terminated)`` and ``host_observe(state, context) -> sequence of floats`` on plain
-floats (``context`` has one float attribute per feature; ``rng`` is the episode's NumPy Generator, for
-transitions that draw random numbers).
+floats (``context`` has one float attribute per feature). Only deterministic steps run on the host: a
+step that draws random numbers draws them from the JAX key, in the compiled path.
 """
 
 from __future__ import annotations

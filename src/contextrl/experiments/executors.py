@@ -18,6 +18,7 @@ from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
+from contextrl.xla_flags import xla_cpu_workaround
 
 EXECUTORS = ("local", "ray")
 
@@ -122,6 +123,7 @@ def connect(executor: str, address: str | None) -> None:
 
 def _remote_chunk(spec_data: dict, chunk: int):
     """What a Ray worker runs: rebuild the plan from the spec, run one chunk."""
+    xla_cpu_workaround()  # a fresh worker: before its first JAX computation
     plan = expand(parse_spec(spec_data))
     return run_chunk(plan, plan.chunks[chunk])
 

@@ -12,6 +12,7 @@ from contextrl.experiments.executors import EXECUTORS, Summary
 from contextrl.experiments.protocols import expand
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
+from contextrl.xla_flags import xla_cpu_workaround
 
 
 def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
@@ -49,6 +50,7 @@ def run_experiment(
     report: bool = True,
 ) -> tuple[RunDir, Summary]:
     """Validate ``spec``, create its run directory, run every trial and write the report."""
+    xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     spec = prepare(spec)
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
@@ -71,6 +73,7 @@ def resume(
     report: bool = True,
 ) -> tuple[RunDir, Summary]:
     """Run the chunks of an interrupted run that have no results yet (failed ones are retried)."""
+    xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     run = RunDir(path)
     spec = prepare(run.spec())
     summary = _execute(run, spec, executor, address, max_chunks, progress)

@@ -5,9 +5,9 @@ env = gymnasium.make("contextrl/CartPole-v0", contexts={"length": 0.8}, obs_cont
 envs = gymnasium.make_vec("contextrl/CartPole-v0", num_envs=64, contexts=batch)
 """
 
+from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 from contextrl.gymnasium.env import ContextualGymEnv
 from contextrl.gymnasium.registration import gym_id, register_envs
-from contextrl.gymnasium.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 from contextrl.gymnasium.vector import ContextualVectorEnv, make_vector_env
 
 __all__ = [

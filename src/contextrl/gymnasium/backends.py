@@ -1,9 +1,10 @@
 """How the single gymnasium environment steps: a compiled JAX environment or a host simulator.
 
-A JAX environment that also offers scalar physics (``contextrl.core.scalar``) steps on the host between
-compiled starts. Every backend answers the same three calls (``start`` an episode under a chosen context, ``advance`` one
-action, draw a ``frame``), so the adapter above them owns everything else once: context sets and
-selectors, observation modes, seeding and gymnasium's API.
+Every backend starts episodes with the core's selection code (:class:`contextrl.core.ContextualEnv`
+for JAX environments, :func:`contextrl.core.choose_context` for host simulators) and answers the same
+calls (``begin`` a run, ``restart`` the next episode, ``advance`` one action), so the adapter above
+owns seeding, options and gymnasium's API once. A JAX environment that also offers scalar physics
+(``contextrl.core.scalar``) steps on the host between compiled starts.
 """
 
 from __future__ import annotations
@@ -21,14 +22,14 @@ import numpy as np
 from jax import lax
 from jax.sharding import SingleDeviceSharding
 
+from contextrl.context.features import ContextSpace
 from contextrl.context.observation import ContextObservation
+from contextrl.context.schedule import ContextSchedule
+from contextrl.core.contextual import ContextualEnv, choose_context
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
 from contextrl.core.spaces import Discrete
 from contextrl.gymnasium.packing import Packer
-from contextrl.gymnasium.schedule import ContextSchedule
-
-KEY_WORDS = 2  # uint32 words of a threefry key
 
 
 def _float_bits(x: jax.Array) -> jax.Array:
@@ -51,30 +52,44 @@ def on_cpu(array: Any) -> jax.Array:
     return jax.device_put(array, jax.devices("cpu")[0])
 
 
-def episode_keys(key_bits: jax.Array, episode: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """(selection key, environment key) of one episode, from the seed's key and the episode index."""
-    key = jax.random.fold_in(jax.random.wrap_key_data(key_bits), episode)
-    select_key, env_key = jax.random.split(key)
-    return select_key, env_key
+def context_table(schedule: ContextSchedule) -> np.ndarray:
+    """The context set as a float32 (contexts × features) array, (0, features) when resampling.
 
-
-def advance(env: Env, key, state, action, context):
-    """One step without the automatic reset: a gymnasium single env resets only when asked.
-
-    This is ``Env.step_then_reset`` minus the reset, which would cost as much again as the step itself
-    and whose result the caller throws away. Keys are split only when something random needs them.
+    Compiled programs take the set as this argument, so one program serves every set of a selector.
     """
-    noisy = env.obs_context.noise > 0
-    transition_key, obs_key = (
-        jax.random.split(jax.random.fold_in(key, state.time))
-        if env.stochastic_transition or noisy
-        else (None, None)
-    )
-    physics, reward, terminated = env.transition(transition_key, state.physics, action, context)
-    time = state.time + 1
-    obs = env._observation(physics, context, obs_key)
-    next_state = dataclasses.replace(state, physics=physics, time=time)
-    return next_state, obs, reward, terminated, time >= env.max_steps
+    if schedule.resamples:
+        return np.zeros((0, len(schedule.space)), np.float32)
+    return np.asarray(schedule.space.to_array(schedule.contexts), np.float32)
+
+
+@dataclasses.dataclass(frozen=True)
+class FromTable:
+    """A context set given as a (contexts × features) array: one gather per choice, not one per
+    feature. The same choices as :class:`FromSet` over the same set (its selector, its indices)."""
+
+    space: ContextSpace
+    table: Any
+    selector: Any
+
+    @property
+    def uses_key(self) -> bool:
+        return self.selector.uses_key
+
+    def __call__(self, key, episode):
+        index = jnp.asarray(self.selector(key, episode, self.table.shape[0]), jnp.int32)
+        return self.space.from_array(jnp.asarray(self.table)[index]), index
+
+
+def schedule_provider(schedule: ContextSchedule, table) -> Any:
+    """The provider of ``schedule`` with its set given as ``table`` (traced or not)."""
+    if schedule.resamples:
+        return schedule.provider
+    return FromTable(schedule.space, table, schedule.provider.selector)
+
+
+def contextual_env(env: Env, schedule: ContextSchedule, table) -> ContextualEnv:
+    """The core contextual env of ``schedule`` with its set given as ``table``."""
+    return ContextualEnv(env, schedule_provider(schedule, table))
 
 
 _PROGRAM_CACHE: dict[Hashable, Any] = {}
@@ -97,9 +112,12 @@ def shared_program(key: Hashable | None, build: Callable[[], Any]) -> Any:
 
 
 class JaxPrograms:
-    """The compiled start and step of one env and one kind of schedule, each one vector in, one out.
+    """One copy of the core contextual env, compiled: each call one uint32 vector in, one out.
 
-    Only the schedule's selector or spec is baked in; the context set is the ``table`` argument.
+    ``begin``/``restart`` (and ``*_with``, which take the episode's context) return the packed state,
+    the first observation, the context vector and the context id; ``advance`` one step without a
+    restart (a gymnasium single env restarts only when asked) returns the packed state, observation,
+    reward and the two end flags.
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
@@ -107,50 +125,69 @@ class JaxPrograms:
         self.schedule = schedule
         self.space = env.context_space
         self.discrete = isinstance(env.action_space, Discrete)
-        key = jax.random.key(0)
-        state_shape = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
-        self.packer = Packer((state_shape, jax.random.key_data(key), env.default_context()))
-        self.start = cpu_jit(self._start_fn)
-        self.start_with = cpu_jit(self._start_with_fn)
-        self.step = cpu_jit(self._step_fn)
+        table = context_table(schedule)
+        state = jax.eval_shape(
+            lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
+        )
+        self.packer = Packer(state)
+        self.begin = cpu_jit(self._begin_fn)
+        self.begin_with = cpu_jit(self._begin_with_fn)
+        self.restart = cpu_jit(self._restart_fn)
+        self.restart_with = cpu_jit(self._restart_with_fn)
+        self.advance = cpu_jit(self._advance_fn)
 
-    def _begin(self, env_key, context_vector, index):
-        reset_key, step_key = jax.random.split(env_key)
-        context = self.space.from_array(context_vector)
-        state, timestep = self.env.reset(reset_key, context)
-        carry = self.packer.pack((state, jax.random.key_data(step_key), context))
+    def _started(self, state, timestep):
         return jnp.concatenate(
             [
-                carry,
+                self.packer.pack(state),
                 _float_bits(timestep.obs),
-                _float_bits(context_vector),
-                lax.bitcast_convert_type(jnp.asarray(index, jnp.int32), jnp.uint32)[None],
+                _float_bits(self.space.to_array(state.context)),
+                lax.bitcast_convert_type(state.context_id, jnp.uint32)[None],
             ]
         )
 
-    def _start_fn(self, words, table):
-        episode = words[KEY_WORDS].astype(jnp.int32)
-        select_key, env_key = episode_keys(words[:KEY_WORDS], episode)
-        context_vector, index = self.schedule.choose(select_key, episode, table)
-        return self._begin(env_key, context_vector, index)
+    def _override(self, words):
+        """(context, context id) written after the key or carry: F context floats, then the id."""
+        return self.space.from_array(_bits_float(words[:-1])), words[-1].astype(jnp.int32)
 
-    def _start_with_fn(self, words):
-        _, env_key = episode_keys(words[:KEY_WORDS], words[KEY_WORDS].astype(jnp.int32))
-        context_vector = _bits_float(words[KEY_WORDS + 1 :])
-        return self._begin(env_key, context_vector, jnp.int32(-1))
+    def _begin_fn(self, head, table):
+        cenv = contextual_env(self.env, self.schedule, table)
+        return self._started(*cenv.reset(head[:2], head[2], head[3]))
 
-    def _step_fn(self, words):
+    def _begin_with_fn(self, words, table):
+        cenv = contextual_env(self.env, self.schedule, table)
+        context, context_id = self._override(words[4:])
+        return self._started(*cenv.reset(words[:2], words[2], words[3], context, context_id))
+
+    def _restart_fn(self, carry, table):
+        cenv = contextual_env(self.env, self.schedule, table)
+        return self._started(*cenv.restart(self.packer.unpack(carry)))
+
+    def _restart_with_fn(self, words, table):
+        cenv = contextual_env(self.env, self.schedule, table)
         size = self.packer.size
-        state, key_bits, context = self.packer.unpack(words[:size])
+        context, context_id = self._override(words[size:])
+        state = self.packer.unpack(words[:size])
+        return self._started(*cenv.restart(state, context, context_id))
+
+    def _advance_fn(self, words):
+        size = self.packer.size
+        state = self.packer.unpack(words[:size])
         if self.discrete:
             action = lax.bitcast_convert_type(words[size], jnp.int32)
         else:
             action = _bits_float(words[size:]).reshape(self.env.action_space.shape)
-        key = jax.random.wrap_key_data(key_bits)
-        state, obs, reward, terminated, truncated = advance(self.env, key, state, action, context)
-        flags = jnp.stack([terminated, truncated]).astype(jnp.uint32)
-        carry = self.packer.pack((state, key_bits, context))
-        return jnp.concatenate([carry, _float_bits(obs), _float_bits(reward), flags])
+        cenv = ContextualEnv(self.env, self.schedule.provider)  # advancing never selects
+        state, timestep = cenv.advance(state, action)
+        flags = jnp.stack([timestep.terminated, timestep.truncated]).astype(jnp.uint32)
+        return jnp.concatenate(
+            [
+                self.packer.pack(state),
+                _float_bits(timestep.obs),
+                _float_bits(timestep.reward),
+                flags,
+            ]
+        )
 
 
 class JaxBackend:
@@ -160,12 +197,12 @@ class JaxBackend:
         self.env = env
         self.schedule = schedule
         self.space = env.context_space
-        key = schedule.program_key
+        key = schedule.selection_key
         self.programs = shared_program(
             None if key is None else ("single", env, key), lambda: JaxPrograms(env, schedule)
         )
         self.packer = self.programs.packer
-        self.table = on_cpu(schedule.table)
+        self.table = on_cpu(context_table(schedule))
         self.action_space = env.action_space.to_gymnasium()
         self.flat_space = env.observation_space.to_gymnasium()
         self.base_size = int(np.prod(env.base_observation_space.shape))
@@ -178,7 +215,7 @@ class JaxBackend:
         self._size = self.packer.size
         self._carry_slot = self._buffer[: self._size]
         self._action_slot = self._buffer[self._size :]
-        self._step = self.programs.step
+        self._advance = self.programs.advance
 
     # ---- host side ------------------------------------------------------------------------------------
     def _unpack_start(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -189,15 +226,35 @@ class JaxBackend:
         context_vector = out[context_start : context_start + features].view(np.float32).copy()
         return obs, context_vector, int(out[-1].view(np.int32))
 
-    def start(
-        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
+    @staticmethod
+    def _override_words(override: tuple[np.ndarray, int]) -> np.ndarray:
+        vector, context_id = override
+        return np.concatenate(
+            [
+                np.asarray(vector, np.float32).view(np.uint32),
+                np.array([context_id], np.int32).view(np.uint32),
+            ]
+        )
+
+    def begin(
+        self, key_bits: np.ndarray, copy: int, num_copies: int, override=None
     ) -> tuple[np.ndarray, np.ndarray, int]:
-        """Begin an episode: (observation, context vector, set index or -1)."""
-        head = np.concatenate([key_bits, np.array([episode], np.uint32)])
-        if context is None:
-            return self._unpack_start(np.asarray(self.programs.start(head, self.table)))
-        words = np.concatenate([head, np.asarray(context, np.float32).view(np.uint32)])
-        return self._unpack_start(np.asarray(self.programs.start_with(words)))
+        """A new run's first episode (global episode ``copy``): (observation, context vector, id).
+
+        ``override``: (context vector, id) to run instead of the selector's choice.
+        """
+        head = np.concatenate([key_bits, np.array([copy, num_copies], np.uint32)])
+        if override is None:
+            return self._unpack_start(np.asarray(self.programs.begin(head, self.table)))
+        words = np.concatenate([head, self._override_words(override)])
+        return self._unpack_start(np.asarray(self.programs.begin_with(words, self.table)))
+
+    def restart(self, override=None) -> tuple[np.ndarray, np.ndarray, int]:
+        """The next episode of this copy (global episode + number of copies)."""
+        if override is None:
+            return self._unpack_start(np.asarray(self.programs.restart(self.carry, self.table)))
+        words = np.concatenate([self.carry, self._override_words(override)])
+        return self._unpack_start(np.asarray(self.programs.restart_with(words, self.table)))
 
     def _checked_action(self, action: Any) -> int | np.ndarray:
         """``action`` as an int (discrete) or a float32 array of the action's shape, else ValueError."""
@@ -219,18 +276,14 @@ class JaxBackend:
             )
         return values
 
-    def _write_action(self, action: Any) -> None:
-        """Validate ``action`` and write its bits into the input vector's action slot."""
+    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
         checked = self._checked_action(action)
         if self._discrete:
             self._action_slot[0] = checked
         else:
             self._action_slot[:] = checked.ravel().view(np.uint32)
-
-    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        self._write_action(action)
         self._carry_slot[:] = self.carry
-        out = np.asarray(self._step(self._buffer))
+        out = np.asarray(self._advance(self._buffer))
         size = self._size
         self.carry = out[:size]
         values = out.view(np.float32)
@@ -239,8 +292,8 @@ class JaxBackend:
 
     def physics_and_context(self) -> tuple[Any, Any]:
         """The current physics state and context as NumPy values (for rendering)."""
-        state, _, context = self.packer.unpack_host(self.carry)
-        return state.physics, context
+        state = self.packer.unpack_host(self.carry)
+        return state.env_state.physics, state.context
 
     def close(self) -> None:
         """Nothing to release: the compiled functions are freed with the object."""
@@ -248,11 +301,11 @@ class JaxBackend:
 
 def steps_on_host(env: Env) -> bool:
     """Whether ``env`` offers the scalar host path (``host_transition`` and ``host_observe``) and its
-    appended context values stay constant through an episode (no observation noise)."""
+    steps draw no random numbers (every draw comes from the JAX key, so those step in JAX)."""
     offers = callable(getattr(env, "host_transition", None)) and callable(
         getattr(env, "host_observe", None)
     )
-    return offers and env.obs_context.noise == 0
+    return offers and not env.steps_need_key
 
 
 class ScalarBackend(JaxBackend):
@@ -260,12 +313,11 @@ class ScalarBackend(JaxBackend):
 
     A compiled call costs about 15 µs on a CPU whatever it computes; the same physics on Python floats
     (the env's ``host_transition``, written once against an array namespace together with its JAX
-    ``transition``, see ``contextrl.core.scalar``) costs a few. Episodes start through the compiled start
-    program, so contexts and start states are exactly the JAX backend's; each step then runs in Python and
-    rounds the state and reward to float32, as the JAX path holds them. The host computes in double
-    precision, so trajectories agree with the JAX backend's to float32 rounding, not bit for bit. A
-    transition's own randomness (Acrobot's torque noise) comes from the NumPy Generator ``start`` is
-    given (the gymnasium env's ``np_random``, seeded by ``reset(seed=...)``), not from JAX keys.
+    ``transition``, see ``contextrl.core.scalar``) costs a few. Episodes start and restart through the
+    compiled core (same contexts, same start states); each step then runs in Python and rounds the state
+    and reward to float32, as the JAX path holds them. The host computes in double precision, so
+    trajectories agree with the JAX backend's to float32 rounding, not bit for bit. Only deterministic
+    steps run here: the episode ends where the core's would (``terminated`` or the time limit).
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
@@ -278,17 +330,16 @@ class ScalarBackend(JaxBackend):
         self._time = 0
         self._context: types.SimpleNamespace | None = None
         self._extra: list[float] = []  # the appended context values, constant through an episode
-        self._rng: np.random.Generator | None = None
 
     def _physics_slice(self) -> slice:
-        """Where the physics state (one float32 array) lies in the packed start carry.
+        """Where the physics state (one float32 array) lies in the packed carry.
 
         Read straight from the carry: unpacking the whole pytree at every start would cost as much as
         several steps.
         """
         packer = self.packer
         leaf_ids = jax.tree_util.tree_unflatten(packer.treedef, range(len(packer.sizes)))
-        leaf = leaf_ids[0].physics
+        leaf = leaf_ids.env_state.physics
         if not isinstance(leaf, int) or packer.dtypes[leaf] != np.float32:
             raise TypeError(
                 f"{self.env.name}'s host path needs its physics state to be one float32 array"
@@ -296,25 +347,28 @@ class ScalarBackend(JaxBackend):
         start = sum(packer.sizes[:leaf])
         return slice(start, start + packer.sizes[leaf])
 
-    def start(
-        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        obs, context_vector, index = super().start(key_bits, episode, rng, context)
+    def _host_start(self, started):
+        obs, context_vector, index = started
         self._state = self.carry[self._physics_words].view(np.float32).tolist()
         self._time = 0
         self._context = types.SimpleNamespace(
             **dict(zip(self.space.names, context_vector.tolist(), strict=True))
         )
         self._extra = obs[self.base_size :].tolist()
-        self._rng = rng
         return obs, context_vector, index
+
+    def begin(self, key_bits, copy, num_copies, override=None):
+        return self._host_start(super().begin(key_bits, copy, num_copies, override))
+
+    def restart(self, override=None):
+        # The carry's physics is the episode's start (the host steps alone); a restart needs only the
+        # carry's run key and episode index.
+        return self._host_start(super().restart(override))
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
         checked = self._checked_action(action)
         action = checked if self._discrete else checked.ravel().tolist()
-        state, reward, terminated = self._host_transition(
-            self._state, action, self._context, self._rng
-        )
+        state, reward, terminated = self._host_transition(self._state, action, self._context)
         rounded = np.array([*state, reward], np.float32).tolist()
         self._state = rounded[:-1]
         self._time += 1
@@ -323,12 +377,15 @@ class ScalarBackend(JaxBackend):
         return obs, rounded[-1], bool(terminated), self._time >= self._max_steps
 
     def physics_and_context(self) -> tuple[Any, Any]:
-        _, _, context = self.packer.unpack_host(self.carry)
-        return np.asarray(self._state, np.float32), context
+        return np.asarray(self._state, np.float32), self.packer.unpack_host(self.carry).context
 
 
 class HostBackend:
-    """A ``HostEnv`` simulator; the adapter adds the time limit and the context observation."""
+    """A ``HostEnv`` simulator; the adapter adds the time limit and the context observation.
+
+    Each episode's context comes from :func:`contextrl.core.choose_context`, the JAX environments'
+    selection code, with the same global episode index.
+    """
 
     def __init__(
         self,
@@ -349,9 +406,7 @@ class HostBackend:
         base = env.base_observation_space
         self.base_space = base
         self.base_size = int(np.prod(base.shape))
-        if (
-            obs_context.hidden
-        ):  # the original observation as it is (pixels keep their shape and dtype)
+        if obs_context.hidden:  # the original observation as it is (pixels keep shape and dtype)
             self.flat_space = base
         else:
             low, high = obs_context.bounds(self.space)
@@ -361,18 +416,19 @@ class HostBackend:
                 dtype=np.float32,
             )
         self.obs_size = int(np.prod(self.flat_space.shape))
-        self.table = on_cpu(schedule.table)
+        self.table = on_cpu(context_table(schedule))
         self._choose = cpu_jit(self._choose_fn)
         self._values = cpu_jit(lambda context, key: obs_context.values(self.space, context, key))
         self.time = 0
         self.context = None
+        self._run: tuple[np.ndarray, int, int] | None = None  # key bits, episode, number of copies
         self._episode_key = None
         self._fixed_extra: np.ndarray | None = None
 
-    def _choose_fn(self, key_bits, episode):
-        select_key, env_key = episode_keys(key_bits, episode)
-        context_vector, index = self.schedule.choose(select_key, episode, self.table)
-        return context_vector, index, jax.random.key_data(env_key)
+    def _choose_fn(self, key_bits, episode, table):
+        provider = schedule_provider(self.schedule, table)
+        context, index, start_key = choose_context(provider, key_bits, episode)
+        return self.space.to_array(context), index, jax.random.key_data(start_key)
 
     def _observation(self, base_obs) -> np.ndarray:
         if self.obs_context.hidden:
@@ -385,12 +441,13 @@ class HostBackend:
             extra = np.asarray(self._values(self.context, key))
         return np.concatenate([base_obs, extra])
 
-    def start(
-        self, key_bits: np.ndarray, episode: int, rng: np.random.Generator, context=None
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        chosen, index, env_key_bits = self._choose(key_bits, np.int32(episode))
-        context_vector = np.asarray(chosen if context is None else context, np.float32)
-        index = -1 if context is not None else int(index)
+    def _start(self, rng, override) -> tuple[np.ndarray, np.ndarray, int]:
+        key_bits, episode, _ = self._run
+        chosen, index, start_key_bits = self._choose(key_bits, np.int32(episode), self.table)
+        context_vector = np.asarray(chosen, np.float32)
+        index = int(index)
+        if override is not None:
+            context_vector, index = np.asarray(override[0], np.float32), int(override[1])
         # Built with NumPy: ``from_array``'s JAX ops would cost milliseconds per reset on the host.
         self.context = self.space.context_class(
             **{
@@ -400,13 +457,22 @@ class HostBackend:
                 )
             }
         )
-        self._episode_key = jax.random.wrap_key_data(env_key_bits)
+        self._episode_key = jax.random.wrap_key_data(start_key_bits)
         self._fixed_extra = None
         if not self.obs_context.hidden and self.obs_context.noise == 0:
             self._fixed_extra = np.asarray(self._values(self.context, self._episode_key))
         self.time = 0
         base_obs = self.env.reset_physics(self.context, rng)
         return self._observation(base_obs), context_vector, index
+
+    def begin(self, key_bits, copy, num_copies, override=None, *, rng=None):
+        self._run = (key_bits, int(copy), int(num_copies))
+        return self._start(rng, override)
+
+    def restart(self, override=None, *, rng=None):
+        key_bits, episode, num_copies = self._run
+        self._run = (key_bits, episode + num_copies, num_copies)
+        return self._start(rng, override)
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
         base_obs, reward, terminated = self.env.step_physics(self._checked_action(action))

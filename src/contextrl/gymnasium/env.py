@@ -19,13 +19,13 @@ import jax
 import numpy as np
 
 from contextrl.context.features import ContextBase, ContextError
+from contextrl.context.schedule import ContextSchedule, resolve_contexts
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import spec
 from contextrl.gymnasium.backends import HostBackend, JaxBackend, ScalarBackend, steps_on_host
-from contextrl.gymnasium.schedule import ContextSchedule, resolve_contexts
 
-RENDER_MODES = ("rgb_array",)
+RENDER_MODES = ("rgb_array", "human")
 
 
 def build_env(
@@ -51,6 +51,16 @@ def check_max_steps(max_steps: Any) -> None:
         return
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
         raise ValueError(f"max_steps must be a positive integer or None, got {max_steps!r}")
+
+
+def run_key_bits(np_random: np.random.Generator) -> np.ndarray:
+    """The run's JAX key (as uint32 data), drawn from the generator ``reset(seed=...)`` seeded.
+
+    ``jax.random.key(seed_generator(seed).integers(2**32))``, with gymnasium's seeding, is the key a
+    hand-written ``jax.vmap`` over ``ContextualEnv`` passes to reproduce a gymnasium run.
+    """
+    seed = int(np_random.integers(2**32, dtype=np.uint64))
+    return np.asarray(jax.random.key_data(jax.random.key(seed)), np.uint32)
 
 
 def render_fps(env: Env | HostEnv) -> int:
@@ -144,13 +154,22 @@ class ContextualGymEnv(gymnasium.Env):
         # The world rectangle JAX renderings show; None fits each context (grids share one).
         self.render_world_box: tuple[float, float, float, float] | None = None
         self.copy_index, self.num_copies = int(copy_index), int(num_copies)
-        self.metadata = {**self.metadata, "render_fps": render_fps(inner)}
+        # A host simulator renders through its own GL context (EGL for MuJoCo), which a pygame window
+        # in the same process can break: host envs offer frames only.
+        modes = ["rgb_array"] if isinstance(inner, HostEnv) else list(RENDER_MODES)
+        if render_mode is not None and render_mode not in modes:
+            raise ValueError(f"{inner.name} renders only in modes {modes}, got {render_mode!r}")
+        self.metadata = {
+            **self.metadata,
+            "render_fps": render_fps(inner),
+            "render_modes": modes,
+        }
         self.action_space = self.backend.action_space
         self.observation_space = self._observation_space()
         self._key_bits: np.ndarray | None = None
-        self._episode = 0
         self._info: dict[str, Any] = {}
         self._values_of_member: dict[int, dict[str, Any]] = {}
+        self._window = None  # the "human" render window, opened on the first frame
 
     def _observation_space(self) -> gymnasium.spaces.Space:
         flat = self.backend.flat_space
@@ -178,59 +197,30 @@ class ContextualGymEnv(gymnasium.Env):
         obs = flat[:split].reshape(obs_space.shape).astype(obs_space.dtype, copy=False)
         return {"obs": obs, "context": flat[split:]}
 
-    def _override(self, options: Mapping[str, Any] | None) -> np.ndarray | None:
-        """The context vector asked for by ``reset(options=...)``, validated, or None."""
+    def _override(self, options: Mapping[str, Any] | None) -> tuple[np.ndarray, int] | None:
+        """(context vector, set index or -1) asked for by ``reset(options=...)``, validated, or None."""
         if not options:
             return None
-        unknown = set(options) - {"context", "context_id"}
-        if unknown:
-            raise ValueError(
-                f"unknown reset options {sorted(unknown)}; use 'context' or 'context_id'"
-            )
-        if "context" in options and "context_id" in options:
-            raise ValueError("give either options['context'] or options['context_id'], not both")
-        space = self.context_space
-        if "context" in options:
-            context = options["context"]
-            if isinstance(context, ContextBase):
-                space.check(context)
-                if context.batch_shape:
-                    raise ContextError("options['context'] must be one context, not a batch")
-            elif isinstance(context, Mapping):
-                context = space.make(**context)
-            else:
-                raise ContextError(
-                    "options['context'] must be a dict of feature values or a context, "
-                    f"got {type(context).__name__}"
-                )
-            return np.asarray(space.to_array(context), np.float32)
-        context_id = options["context_id"]
-        if self.schedule.resamples or context_id not in self.schedule.ids:
-            raise ContextError(
-                f"options['context_id']={context_id!r} is not an id of the context set "
-                f"{list(self.schedule.ids)}"
-            )
-        member = self.schedule.provider.contexts[self.schedule.ids.index(context_id)]
-        return np.asarray(space.to_array(member), np.float32)
+        return reset_override(self.schedule, options)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         override = self._override(options)
         super().reset(seed=seed)
+        host = {"rng": self.np_random} if isinstance(self.backend, HostBackend) else {}
         if seed is not None or self._key_bits is None:
-            seed_key = jax.random.key(int(self.np_random.integers(2**32, dtype=np.uint64)))
-            self._key_bits = np.asarray(jax.random.key_data(seed_key), np.uint32)
-            self._episode = 0
-        episode = self.copy_index + self._episode * self.num_copies
-        self._episode += 1
-        obs, context_vector, index = self.backend.start(
-            self._key_bits, episode, self.np_random, override
-        )
-        if override is not None:
-            index = -1
+            self._key_bits = run_key_bits(self.np_random)
+            started = self.backend.begin(
+                self._key_bits, self.copy_index, self.num_copies, override, **host
+            )
+        else:
+            started = self.backend.restart(override, **host)
+        obs, context_vector, index = started
         self._info = {
             "context_id": self.schedule.user_id(index),
             "context": self._values(index, context_vector),
         }
+        if self.render_mode == "human":
+            self.render()
         return self._observation(obs), self._fresh_info()
 
     def _values(self, index: int, context_vector: np.ndarray) -> dict[str, Any]:
@@ -253,6 +243,8 @@ class ContextualGymEnv(gymnasium.Env):
         if self._key_bits is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         obs, reward, terminated, truncated = self.backend.advance(action)
+        if self.render_mode == "human":
+            self.render()
         return self._observation(obs), reward, terminated, truncated, self._fresh_info()
 
     @property
@@ -260,12 +252,7 @@ class ContextualGymEnv(gymnasium.Env):
         """The current episode's context (feature name → value)."""
         return dict(self._info.get("context", {}))
 
-    def render(self):
-        if self.render_mode is None:
-            gymnasium.logger.warn('render() needs render_mode="rgb_array" at construction')
-            return None
-        if self._key_bits is None:
-            raise gymnasium.error.ResetNeeded("call reset() before render()")
+    def _frame(self) -> np.ndarray:
         if isinstance(self.backend, HostBackend):
             return self.contextrl_env.render_frame()
         from contextrl.render import draw
@@ -273,6 +260,60 @@ class ContextualGymEnv(gymnasium.Env):
         physics, context = self.backend.physics_and_context()
         return draw(self.contextrl_env, physics, context, world_box=self.render_world_box)
 
+    def render(self):
+        """The current frame (``"rgb_array"``), or shown in a window (``"human"``, needs pygame)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn(
+                'render() needs render_mode="rgb_array" or "human" at construction'
+            )
+            return None
+        if self._key_bits is None:
+            raise gymnasium.error.ResetNeeded("call reset() before render()")
+        frame = self._frame()
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            from contextrl.render.window import Window
+
+            self._window = Window(self.contextrl_env.name, self.metadata["render_fps"])
+        self._window.show(frame)
+        return None
+
     def close(self):
+        if self._window is not None:
+            self._window.close()
+            self._window = None
         self.backend.close()
         super().close()
+
+
+def reset_override(schedule: ContextSchedule, options: Mapping[str, Any]) -> tuple[np.ndarray, int]:
+    """(context vector, set index or -1) of ``reset(options={"context": ...} or {"context_id": id})``."""
+    unknown = set(options) - {"context", "context_id"}
+    if unknown:
+        raise ValueError(f"unknown reset options {sorted(unknown)}; use 'context' or 'context_id'")
+    if "context" in options and "context_id" in options:
+        raise ValueError("give either options['context'] or options['context_id'], not both")
+    space = schedule.space
+    if "context" in options:
+        context = options["context"]
+        if isinstance(context, ContextBase):
+            space.check(context)
+            if context.batch_shape:
+                raise ContextError("options['context'] must be one context, not a batch")
+        elif isinstance(context, Mapping):
+            context = space.make(**context)
+        else:
+            raise ContextError(
+                "options['context'] must be a dict of feature values or a context, "
+                f"got {type(context).__name__}"
+            )
+        return np.asarray(space.to_array(context), np.float32), -1
+    context_id = options["context_id"]
+    if schedule.resamples or context_id not in schedule.ids:
+        raise ContextError(
+            f"options['context_id']={context_id!r} is not an id of the context set "
+            f"{list(schedule.ids)}"
+        )
+    index = schedule.ids.index(context_id)
+    return np.asarray(space.to_array(schedule.contexts[index]), np.float32), index

@@ -27,106 +27,85 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from contextrl.context.features import ContextError
-from contextrl.core.env import Env
+from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
+from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
-from contextrl.core.spaces import Discrete
-from contextrl.gymnasium.backends import advance, shared_program
-from contextrl.gymnasium.env import ContextualGymEnv, build_env, check_max_steps, render_fps
+from contextrl.gymnasium.backends import context_table, contextual_env, shared_program
+from contextrl.gymnasium.env import (
+    ContextualGymEnv,
+    build_env,
+    check_max_steps,
+    render_fps,
+    reset_override,
+    run_key_bits,
+)
 from contextrl.gymnasium.packing import Packer
-from contextrl.gymnasium.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 
 
 class VectorPrograms:
-    """The compiled reset and step of ``num_envs`` copies (vmapped), shared by equal configurations."""
+    """The core's ``reset_copies`` and ``step_copies`` of ``num_envs`` copies, compiled.
+
+    The state stays on the device as one uint32 array (a row per copy); each step takes it, the
+    actions and the context set, and returns it with one float32 array: a row per copy holding the
+    observation, reward, end flags, final observation, context ids (and, when contexts are resampled,
+    the episode's context).
+    Programs are shared by equal configurations; the context set is an argument.
+    """
 
     def __init__(self, env: Env, schedule: ContextSchedule, num_envs: int):
         self.env = env
         self.schedule = schedule
         self.num_envs = num_envs
-        self.context_space = env.context_space
-        self.discrete = isinstance(env.action_space, Discrete)
-        key = jax.random.key(0)
-        state = jax.eval_shape(lambda k, c: env.reset(k, c)[0], key, env.default_context())
-        self.packer = Packer(
-            (state, env.default_context(), jnp.int32(0), jnp.int32(0), jax.random.key_data(key))
+        self.space = env.context_space
+        table = context_table(schedule)
+        state = jax.eval_shape(
+            lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
         )
-        self.reset = jax.jit(jax.vmap(self._reset_copy, in_axes=(None, 0, None)))
-        self.step = jax.jit(self._step)
+        self.packer = Packer(state)
+        self.reset = jax.jit(self._reset)
+        self.step = jax.jit(self._step, donate_argnums=0)
 
-    def _global_episode(self, copy, episode):
-        return copy.astype(jnp.int32) + episode * self.num_envs
+    def _reset(self, key_bits, table, override, override_id, given):
+        """Every copy starts its first episode; where ``given``, under the ``override`` context."""
+        cenv = contextual_env(self.env, self.schedule, table)
+        num_envs = self.num_envs
 
-    def _choose(self, select_key, copy, episode, table):
-        vector, index = self.schedule.choose(select_key, self._global_episode(copy, episode), table)
-        return self.context_space.from_array(vector), index
-
-    def _restart_copy(self, key_bits, copy, episode, table):
-        """A copy's next episode: split its key chain, pick the context, reset."""
-        key, select_key, env_key = jax.random.split(jax.random.wrap_key_data(key_bits), 3)
-        context, index = self._choose(select_key, copy, episode, table)
-        state, timestep = self.env.reset(env_key, context)
-        return state, timestep.obs, context, index, jax.random.key_data(key)
-
-    def _reset_copy(self, seed_bits, copy, table):
-        copy_key = jax.random.fold_in(jax.random.wrap_key_data(seed_bits), copy)
-        episode = jnp.int32(0)
-        state, obs, context, index, key_bits = self._restart_copy(
-            jax.random.key_data(copy_key), copy, episode, table
-        )
-        carry = self.packer.pack((state, context, index, episode, key_bits))
-        row = self._row(obs, jnp.float32(0), False, False, obs, index, index, context)
-        return carry, row
-
-    def _step(self, carry, action_words, copies, table):
-        """All copies advance; only if some episode ended are the restarts computed (one cond).
-
-        Same-step auto-reset as ``Env.step_then_reset``, but the reset (random start states, context
-        choice) runs only on steps where an episode ends, which is most of the cost for few copies.
-        """
-        state, context, index, episode, key_bits = jax.vmap(self.packer.unpack)(carry)
-        if self.discrete:
-            action = jax.lax.bitcast_convert_type(action_words[:, 0], jnp.int32)
-        else:
-            action = jax.lax.bitcast_convert_type(action_words, jnp.float32).reshape(
-                (carry.shape[0], *self.env.action_space.shape)
+        def start(copy, vector, context_id, use_given):
+            chosen = cenv.reset(key_bits, copy, num_envs)
+            supplied = cenv.reset(
+                key_bits, copy, num_envs, self.space.from_array(vector), context_id
             )
-        keys = jax.vmap(jax.random.wrap_key_data)(key_bits)
-        state, final_obs, reward, terminated, truncated = jax.vmap(
-            functools.partial(advance, self.env)
-        )(keys, state, action, context)
-        done = terminated | truncated
-        restart = jax.lax.cond(
-            done.any(),
-            lambda: jax.vmap(self._restart_copy, in_axes=(0, 0, 0, None))(
-                key_bits, copies, episode + 1, table
-            ),
-            lambda: (state, final_obs, context, index, key_bits),
-        )
-        kept = (state, final_obs, context, index, key_bits)
-        state, obs, new_context, new_index, key_bits = jax.tree_util.tree_map(
-            lambda fresh, old: jnp.where(done.reshape(-1, *([1] * (old.ndim - 1))), fresh, old),
-            restart,
-            kept,
-        )
-        new_episode = jnp.where(done, episode + 1, episode)
-        carry = jax.vmap(self.packer.pack)((state, new_context, new_index, new_episode, key_bits))
-        rows = jax.vmap(self._row)(
-            obs, reward, terminated, truncated, final_obs, index, new_index, new_context
-        )
-        return carry, rows
+            return tree_where(use_given, supplied, chosen)
 
-    def _row(self, obs, reward, terminated, truncated, final_obs, index, new_index, context):
-        """One float32 row per copy: obs, reward, flags, final_obs, ids, context values."""
+        copies = jnp.arange(num_envs, dtype=jnp.int32)
+        state, timestep = jax.vmap(start)(copies, override, override_id, given)
+        return jax.vmap(self.packer.pack)(state), self._rows(state, timestep)
+
+    def _step(self, carry, actions, table):
+        cenv = contextual_env(self.env, self.schedule, table)
+        state = jax.vmap(self.packer.unpack)(carry)
+        state, timestep = cenv.step_copies(state, actions)
+        return jax.vmap(self.packer.pack)(state), self._rows(state, timestep)
+
+    def _rows(self, state, timestep):
+        count = self.num_envs
         return jnp.concatenate(
             [
-                obs,
-                jnp.asarray(reward, jnp.float32)[None],
-                jnp.asarray(terminated, jnp.float32)[None],
-                jnp.asarray(truncated, jnp.float32)[None],
-                final_obs,
-                jnp.stack([index, new_index]).astype(jnp.float32),
-                self.context_space.to_array(context),
-            ]
+                timestep.obs.reshape(count, -1),
+                timestep.reward[:, None],
+                timestep.terminated.astype(jnp.float32)[:, None],
+                timestep.truncated.astype(jnp.float32)[:, None],
+                timestep.final_obs.reshape(count, -1),
+                timestep.info["context_id"].astype(jnp.float32)[:, None],
+                state.context_id.astype(jnp.float32)[:, None],
+                # A set member's values the host reads from the set; only resampled ones travel.
+                *(
+                    [jax.vmap(self.space.to_array)(state.context)]
+                    if self.schedule.resamples
+                    else []
+                ),
+            ],
+            axis=1,
         )
 
 
@@ -209,13 +188,15 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             if all(isinstance(i, (int, np.integer)) for i in ids)
             else np.asarray(ids, object)
         )
-        program_key = self.schedule.program_key
+        program_key = self.schedule.selection_key
         self.programs = shared_program(
             None if program_key is None else ("vector", self.env, program_key, self.num_envs),
             lambda: VectorPrograms(self.env, self.schedule, self.num_envs),
         )
         self.packer = self.programs.packer
-        self.table = jnp.asarray(self.schedule.table)
+        self._table_host = context_table(self.schedule)
+        self.table = jnp.asarray(self._table_host)
+        self._values = np.zeros((self.num_envs, len(self.context_space)), np.float32)
         self._ids_are_indices = self._id_table.dtype != object and np.array_equal(
             self._id_table, np.arange(len(self._id_table))
         )
@@ -226,8 +207,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             for name, f in self.context_space.features.items()
             if f.kind == "categorical"
         }
-        self._copies = jnp.arange(self.num_envs, dtype=jnp.uint32)
         self._carry: jax.Array | None = None  # stays on the device between steps
+        self._obs_slice = slice(0, self.obs_size)
+        self._final_slice = slice(self.obs_size + 3, 2 * self.obs_size + 3)
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
@@ -243,11 +225,11 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             return flat
         return {"obs": flat[:, : self.base_size], "context": flat[:, self.base_size :]}
 
-    def _context_info(self, rows: np.ndarray) -> dict[str, Any]:
-        start = 2 * self.obs_size + 5
+    def _context_info(self) -> dict[str, Any]:
+        """Feature name → one value per copy (columns of the kept values: work per feature)."""
         info: dict[str, Any] = {}
         for column, (name, feature) in enumerate(self.context_space.features.items()):
-            value = rows[:, start + column]
+            value = self._values[:, column]
             if feature.kind == "categorical":
                 value = self._choices[name][value.astype(np.int64)]
             elif feature.kind == "int":
@@ -256,28 +238,69 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             info[f"_{name}"] = self._everyone
         return info
 
+    def _update_values(self, rows: np.ndarray, changed: np.ndarray) -> None:
+        """The context values of the copies whose episode changed: from the set, or as they came back."""
+        if self.schedule.resamples:
+            fresh = rows[:, 2 * self.obs_size + 5 :]
+        else:
+            fresh = self._table_host[rows[:, 2 * self.obs_size + 4].astype(np.int64)]
+        self._values = np.where(changed[:, None], fresh, self._values)
+
     def _info(self, rows: np.ndarray) -> dict[str, Any]:
-        ids_at = 2 * self.obs_size + 3
         return {
-            "context_id": self._user_ids(rows[:, ids_at + 1]),
+            "context_id": self._user_ids(rows[:, 2 * self.obs_size + 4]),
             "_context_id": self._everyone,
-            "context": self._context_info(rows),
+            "context": self._context_info(),
             "_context": self._everyone,
         }
 
+    def _overrides(self, options: dict[str, Any] | None):
+        """Per-copy contexts asked for by ``reset(options=...)``: (vectors, set indices, given mask).
+
+        ``options["context"]`` is one context for every copy or a list with one per copy (None: the
+        selector's choice); ``options["context_id"]`` likewise with ids of the context set.
+        """
+        count, features = self.num_envs, len(self.context_space)
+        vectors = np.zeros((count, features), np.float32)
+        indices = np.full(count, -1, np.int32)
+        given = np.zeros(count, bool)
+        if not options:
+            return vectors, indices, given
+        unknown = set(options) - {"context", "context_id"}
+        if unknown:
+            raise ValueError(
+                f"unknown reset options {sorted(unknown)}; use 'context' or 'context_id'"
+            )
+        if len(options) > 1:
+            raise ValueError("give either options['context'] or options['context_id'], not both")
+        ((name, value),) = options.items()
+        per_copy = isinstance(value, (list, tuple))
+        if per_copy and len(value) != count:
+            raise ValueError(
+                f"options[{name!r}] lists {len(value)} entries; give one per copy ({count}) "
+                "or one for all"
+            )
+        for copy, entry in enumerate(value if per_copy else [value] * count):
+            if entry is not None:
+                vectors[copy], indices[copy] = reset_override(self.schedule, {name: entry})
+                given[copy] = True
+        return vectors, indices, given
+
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
-        if options:
-            raise ValueError(f"unsupported reset options {sorted(options)}")
+        """Start every copy's first episode; ``options`` may set contexts (see :meth:`_overrides`)."""
+        vectors, indices, given = self._overrides(options)
         if isinstance(seed, (list, tuple)):
             seed = seed[0]
         super().reset(seed=seed)
-        seed_key = jax.random.key(int(self.np_random.integers(2**32, dtype=np.uint64)))
-        seed_bits = np.asarray(jax.random.key_data(seed_key), np.uint32)
-        self._carry, rows = self.programs.reset(seed_bits, self._copies, self.table)
+        key_bits = run_key_bits(self.np_random)
+        self._carry, rows = self.programs.reset(key_bits, self.table, vectors, indices, given)
         rows = np.asarray(rows)
-        return self._observations(rows[:, : self.obs_size].copy()), self._info(rows)
+        self._values = vectors  # the given ones; the others from the set or the rows
+        self._update_values(rows, ~given)
+        return self._observations(rows[:, self._obs_slice]), self._info(rows)
 
-    def _action_words(self, actions) -> np.ndarray:
+    def _checked_actions(self, actions) -> np.ndarray:
+        """The actions as one int32 or float32 array, refused unless valid for every copy."""
         if self._discrete:
             actions = np.asarray(actions)
             if actions.shape != (self.num_envs,) or actions.dtype.kind not in "iu":
@@ -289,45 +312,36 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
                 raise ValueError(
                     f"actions must lie in [0, {self.single_action_space.n}), got {actions!r}"
                 )
-            return actions.astype(np.int32).view(np.uint32)[:, None]
+            return actions.astype(np.int32, copy=False)
         values = np.asarray(actions, np.float32)
         expected = (self.num_envs, *self.single_action_space.shape)
-        if values.shape != expected or not np.all(np.isfinite(values)):
+        if values.shape != expected or not np.isfinite(values).all():
             raise ValueError(f"actions must be finite floats of shape {expected}, got {actions!r}")
-        return values.reshape(self.num_envs, -1).view(np.uint32)
+        return values
 
     def step(self, actions):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         self._carry, rows = self.programs.step(
-            self._carry, self._action_words(actions), self._copies, self.table
+            self._carry, self._checked_actions(actions), self.table
         )
         rows = np.asarray(rows)
         d = self.obs_size
-        obs = rows[:, :d].copy()
-        reward = rows[:, d].copy()
         terminated = rows[:, d + 1] > 0.5
         truncated = rows[:, d + 2] > 0.5
-        info = self._info(rows)
         done = terminated | truncated
         if done.any():
-            final_obs = np.full(self.num_envs, None, object)
-            ended = np.flatnonzero(done)
-            finals = self._observations(rows[ended, d + 3 : 2 * d + 3].copy())
-            for position, copy in enumerate(ended):
-                final_obs[copy] = (
-                    {k: v[position] for k, v in finals.items()}
-                    if isinstance(finals, dict)
-                    else finals[position]
-                )
-            info["final_obs"] = final_obs
+            self._update_values(rows, done)
+        info = self._info(rows)
+        if done.any():
+            info["final_obs"] = self._observations(rows[:, self._final_slice])
             info["_final_obs"] = done
             info["final_info"] = {
                 "context_id": self._user_ids(rows[:, 2 * d + 3]),
                 "_context_id": done,
             }
             info["_final_info"] = done
-        return self._observations(obs), reward, terminated, truncated, info
+        return self._observations(rows[:, self._obs_slice]), rows[:, d], terminated, truncated, info
 
     def render(self):
         if self.render_mode is None or self._carry is None:
@@ -336,8 +350,8 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
 
         frames = []
         for words in np.asarray(self._carry):
-            state, context, *_ = self.packer.unpack_host(words)
-            frames.append(draw(self.env, state.physics, context))
+            state = self.packer.unpack_host(words)
+            frames.append(draw(self.env, state.env_state.physics, state.context))
         return tuple(frames)
 
 

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contextrl.context.features import ContextBase, context_type, feature
-from contextrl.core import scalar
+from contextrl.context.features import Coherence, ContextBase, context_type, feature
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box, Discrete
 
@@ -114,6 +114,15 @@ class AcrobotContext(ContextBase):
         doc="start velocities ~ U(lower, upper)",
         affects=("start_state",),
         aliases=("initial_velocity_upper",),
+    )
+
+    coherence: ClassVar[tuple[Coherence, ...]] = (
+        Coherence(
+            ("LINK_LENGTH_1", "LINK_LENGTH_2"),
+            lambda first, second: first + second > GOAL_HEIGHT,
+            f"LINK_LENGTH_1 + LINK_LENGTH_2 > {GOAL_HEIGHT:g} (the goal height)",
+            "shorter links can never lift the tip to the goal",
+        ),
     )
 
 
@@ -219,13 +228,3 @@ class Acrobot(Env):
 
     def observe(self, state, context) -> jax.Array:
         return observation(jnp, state)
-
-    def host_transition(self, state, action: int, context, rng: np.random.Generator):
-        """The same step on Python floats (see ``contextrl.core.scalar``). The torque noise, if any,
-        is drawn from ``rng`` (the episode's NumPy Generator), so it differs from the JAX path's."""
-        noise = context.torque_noise_max
-        torque = action - 1.0 + (float(rng.uniform(-noise, noise)) if noise > 0 else 0.0)
-        return dynamics(scalar, scalar.stack(state), torque, context)
-
-    def host_observe(self, state, context):
-        return observation(scalar, state)

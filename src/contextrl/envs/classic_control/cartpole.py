@@ -114,7 +114,7 @@ class CartPole(Env):
     def observe(self, state, context) -> jax.Array:
         return state
 
-    def host_transition(self, state, action: int, context, rng: np.random.Generator):
+    def host_transition(self, state, action: int, context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""
         return dynamics(scalar, state, action, context)
 

@@ -7,12 +7,13 @@ The car's physics are shared with MountainCarContinuous, which differs only in h
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.context.features import Coherence, ContextBase, context_type, feature
 from contextrl.core import scalar
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box, Discrete
@@ -41,6 +42,27 @@ class HillContext(ContextBase):
     )
     max_velocity_start: float = feature(
         0.0, -0.07, 0.07, doc="start velocity ~ U(min, max)", affects=("start_state",)
+    )
+
+    coherence: ClassVar[tuple[Coherence, ...]] = (
+        Coherence(
+            ("goal_position", "max_position"),
+            lambda goal, end: goal <= end,
+            "goal_position <= max_position",
+            "a goal beyond the end of the track can never be reached",
+        ),
+        Coherence(
+            ("min_position", "min_position_start"),
+            lambda wall, start: wall <= start,
+            "min_position <= min_position_start",
+            "the car would start left of the wall",
+        ),
+        Coherence(
+            ("max_position_start", "max_position"),
+            lambda start, end: start <= end,
+            "max_position_start <= max_position",
+            "the car would start beyond the end of the track",
+        ),
     )
 
 
@@ -110,7 +132,7 @@ class MountainCar(Env):
     def observe(self, state, context) -> jax.Array:
         return state
 
-    def host_transition(self, state, action: int, context, rng: np.random.Generator):
+    def host_transition(self, state, action: int, context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""
         return dynamics(scalar, state, action, context)
 

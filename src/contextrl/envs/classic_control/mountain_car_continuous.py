@@ -67,7 +67,7 @@ class MountainCarContinuous(Env):
     def observe(self, state, context) -> jax.Array:
         return state
 
-    def host_transition(self, state, action: list[float], context, rng: np.random.Generator):
+    def host_transition(self, state, action: list[float], context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""
         return dynamics(scalar, state, action[0], context)
 

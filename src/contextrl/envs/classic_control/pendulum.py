@@ -116,7 +116,7 @@ class Pendulum(Env):
     def observe(self, state, context) -> jax.Array:
         return observation(jnp, state)
 
-    def host_transition(self, state, action: list[float], context, rng: np.random.Generator):
+    def host_transition(self, state, action: list[float], context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""
         return dynamics(scalar, state, action[0], context)
 

@@ -1,8 +1,9 @@
-"""The ``contexts=`` argument of the gymnasium adapters, resolved once, before any episode runs.
+"""The one parser of ``contexts=``: every face (core, gymnasium, agents, CARL/gymnax faces) calls it.
 
 Users hand contexts over in many shapes (one dict of values, a context object, a mapping id → context,
 a list, a batch from ``crl.sample``, a distribution spec). They all become one :class:`ContextSchedule`:
 a pure JAX provider that picks the context of each episode, plus the ids users see in ``info``.
+The default selector is :data:`DEFAULT_SELECTOR` ("round_robin") everywhere.
 """
 
 from __future__ import annotations
@@ -11,14 +12,12 @@ import dataclasses
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.distributions import DISTRIBUTIONS, Constant
 from contextrl.context.features import ContextBase, ContextError, ContextSpace
 from contextrl.context.observation import ContextObservation
-from contextrl.context.selectors import FromSet, Resample, make_selector
+from contextrl.context.selectors import DEFAULT_SELECTOR, FromSet, Resample, make_selector
 
 RESAMPLED_ID = -1  # the id of a context that is not from the set (resampled, or given to reset)
 
@@ -40,15 +39,13 @@ class ContextSchedule:
         return RESAMPLED_ID if index < 0 else self.ids[index]
 
     @property
-    def table(self) -> np.ndarray:
-        """The set as a float32 (contexts × features) array; (0, features) when resampling."""
-        if self.resamples:
-            return np.zeros((0, len(self.space)), np.float32)
-        return np.asarray(self.space.to_array(self.provider.contexts), np.float32)
+    def contexts(self) -> Any:
+        """The set as a batched context (None when resampling)."""
+        return None if self.resamples else self.provider.contexts
 
     @property
-    def program_key(self) -> Hashable | None:
-        """What compiled code depends on: the selector or the spec, not the set's values (an argument).
+    def selection_key(self) -> Hashable | None:
+        """What compiled code depends on besides the set's values: the selector or the spec.
 
         None when that is not hashable (then nothing compiled is shared between adapters).
         """
@@ -61,17 +58,6 @@ class ContextSchedule:
         except TypeError:
             return None
         return key
-
-    def choose(self, key, episode, table) -> tuple[jax.Array, jax.Array]:
-        """(context as a float32 feature vector, set index or -1) for one episode; pure and jittable.
-
-        ``table`` is :attr:`table` passed as an argument, so one compiled program serves every set.
-        """
-        if self.resamples:
-            context, index = self.provider(key, episode)
-            return self.space.to_array(context), jnp.asarray(index, jnp.int32)
-        index = jnp.asarray(self.provider.selector(key, episode, table.shape[0]), jnp.int32)
-        return table[index], index
 
     def visible_features(self, features: None | str | Sequence[str]) -> None | str | Sequence[str]:
         """Resolve "varying" for a distribution spec (the features it does not hold constant)."""
@@ -135,7 +121,8 @@ def resolve_contexts(
     ``contexts`` may be None (the default context), one context (a dict of feature values or a context
     object), a batch of contexts (``crl.sample``), a mapping id → context, a list of contexts, or a dict
     of distributions resampled at every reset. ``selector`` ("round_robin" by default, "random",
-    "static", or ``fn(key, episode, n) -> index``) picks from a set.
+    "static", or ``fn(key, episode, n) -> index``) picks from a set; ``episode`` is the global episode
+    index ``copy + e * num_copies``.
     """
     if contexts is None:
         contexts = space.default()
@@ -144,7 +131,7 @@ def resolve_contexts(
     if isinstance(contexts, Mapping) and any(
         isinstance(v, DISTRIBUTIONS) for v in contexts.values()
     ):
-        if selector is not None:
+        if selector not in (None, DEFAULT_SELECTOR):
             raise ContextError(
                 f"context_selector={selector!r} picks from a context set, but contexts is a "
                 "distribution spec (resampled at every reset); drop the selector"
@@ -162,7 +149,7 @@ def resolve_contexts(
             )
         return ContextSchedule(
             space,
-            FromSet(contexts, make_selector(selector or "round_robin")),
+            FromSet(contexts, make_selector(selector or DEFAULT_SELECTOR)),
             tuple(range(len(contexts))),
         )
     elif isinstance(contexts, ContextBase):
@@ -177,4 +164,4 @@ def resolve_contexts(
             f"distributions; got {contexts!r}"
         )
     batch = space.stack(members)
-    return ContextSchedule(space, FromSet(batch, make_selector(selector or "round_robin")), ids)
+    return ContextSchedule(space, FromSet(batch, make_selector(selector or DEFAULT_SELECTOR)), ids)
