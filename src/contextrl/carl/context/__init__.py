@@ -1,0 +1,1 @@
+"""CARL's ``carl.context``: context features and spaces, the sampler and the selectors."""

@@ -1,0 +1,6 @@
+"""CARL's ``carl.envs.gymnasium.box2d`` (with the ``box2d`` extra installed)."""
+
+from contextrl.carl.envs.carl_env import carl_names, family_getattr
+
+__getattr__ = family_getattr("box2d")
+__all__ = carl_names("box2d")

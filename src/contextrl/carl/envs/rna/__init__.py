@@ -1,0 +1,6 @@
+"""CARL's ``carl.envs.rna``: RNA design (with the ``rna`` extra installed)."""
+
+from contextrl.carl.envs.carl_env import carl_names, family_getattr
+
+__getattr__ = family_getattr("rna")
+__all__ = carl_names("rna")

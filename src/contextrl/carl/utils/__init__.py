@@ -1,0 +1,1 @@
+"""CARL's ``carl.utils`` (the type aliases)."""

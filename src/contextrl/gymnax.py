@@ -1,0 +1,117 @@
+"""gymnax's API over every contextrl JAX environment: trainers written for gymnax run unchanged.
+
+    import contextrl.gymnax as gymnax                      # was: import gymnax
+    env, params = gymnax.make("CartPole")                  # gymnax's ids work too: "CartPole-v1"
+    obs, state = env.reset(key, params)
+    obs, state, reward, done, info = env.step(key, state, action, params)
+
+The params are the context (``CartPoleContext``): ``params.replace(length=0.8)`` gives another one, and a
+batch from ``crl.sample`` is a batch of params, so ``jax.vmap(env.step)(keys, states, actions, batch)``
+steps every copy under its own context. ``step`` is the core's ``Env.step``: when an episode ends
+(terminated or at the time limit) the same call starts the next one under the same params, and ``info``
+holds ``terminated``, ``truncated``, ``discount`` (0 at a termination, else 1) and
+``final_observation`` (the last observation of the episode that ended), as in gymnax.
+
+Where it differs from gymnax: the time limit is static configuration (``make(id, max_steps=...)``), not
+``params.max_steps_in_episode``; derived constants (CartPole's ``total_mass``, ``polemass_length``) are
+not params but computed from the context in every step, so they can never go stale; the spaces are
+contextrl's (``n``, ``shape``, ``dtype``, ``low``, ``high``, ``sample(key)`` as gymnax's).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from contextrl.core.env import Env, EnvState
+from contextrl.core.registry import make as make_env
+from contextrl.core.registry import registered, spec
+from contextrl.core.spaces import Box, Discrete
+
+
+class Environment:
+    """A contextrl ``Env`` answering gymnax's calls; its params are the env's context type.
+
+    ``reset`` and ``step`` are compiled once per environment (as gymnax's are), so a Python loop over
+    them is fast too; inside a caller's ``jit`` they simply inline.
+    """
+
+    def __init__(self, env: Env):
+        self.env = env
+        self.reset = jax.jit(self._reset)
+        self.step = jax.jit(self._step)
+
+    def __repr__(self) -> str:
+        return f"contextrl.gymnax.Environment({self.env!r})"
+
+    @property
+    def default_params(self):
+        return self.env.default_context()
+
+    @property
+    def name(self) -> str:
+        return self.env.name
+
+    @property
+    def num_actions(self) -> int:
+        """The number of discrete actions, or the size of a continuous action."""
+        space = self.env.action_space
+        return space.n if isinstance(space, Discrete) else int(space.shape[0])
+
+    def action_space(self, params: Any = None) -> Discrete | Box:
+        return self.env.action_space
+
+    def observation_space(self, params: Any = None) -> Box:
+        """The same for every params: wide enough for every context inside the bounds."""
+        return self.env.observation_space
+
+    def _reset(self, key: jax.Array, params: Any = None) -> tuple[jax.Array, EnvState]:
+        state, timestep = self.env.reset(key, self._params(params))
+        return timestep.obs, state
+
+    def _step(
+        self, key: jax.Array, state: EnvState, action: Any, params: Any = None
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
+        state, timestep = self.env.step(key, state, action, self._params(params))
+        info = {
+            "terminated": timestep.terminated,
+            "truncated": timestep.truncated,
+            "discount": 1.0 - timestep.terminated.astype(jnp.float32),
+            "final_observation": timestep.final_obs,
+        }
+        return timestep.obs, state, timestep.reward, timestep.done, info
+
+    def _params(self, params: Any):
+        return self.default_params if params is None else params
+
+
+def _jax_ids() -> list[str]:
+    return [env_id for env_id in registered() if not spec(env_id).host]
+
+
+def make(env_id: str, **kwargs: Any) -> tuple[Environment, Any]:
+    """``(env, default_params)`` for a registered JAX environment (contextrl id, CARL alias or gymnax id
+    such as ``"CartPole-v1"``). Keyword arguments go to ``crl.make`` (``max_steps``,
+    ``obs_context_features``, ...)."""
+    try:
+        env_spec = spec(env_id)
+    except KeyError:
+        unversioned = re.sub(r"-v\d+$", "", env_id)
+        if unversioned == env_id:
+            raise
+        env_spec = spec(unversioned)
+    if env_spec.host:
+        raise ValueError(
+            f"{env_spec.id} steps on the host, outside JAX, so it has no gymnax face; "
+            f"JAX environments: {_jax_ids()}"
+        )
+    env = Environment(make_env(env_spec.id, **kwargs))
+    return env, env.default_params
+
+
+def registered_envs() -> list[str]:
+    """The ids ``make`` accepts (JAX environments only)."""
+    return _jax_ids()

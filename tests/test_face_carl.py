@@ -1,0 +1,397 @@
+"""The CARL face: CARL's documented examples run with only the import changed, and behave correctly.
+
+Each example below is CARL 1.1.1 code as its documentation and docstrings show it; ``run_carl`` swaps
+``from carl.`` for ``from contextrl.carl.`` and nothing else.
+"""
+
+import importlib
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import contextrl as crl
+from contextrl.carl.envs import CARLCartPole, CARLPendulum
+from contextrl.gymnasium import ContextualGymEnv
+
+CLASSIC_CONTROL = [
+    "CARLAcrobot",
+    "CARLCartPole",
+    "CARLMountainCar",
+    "CARLMountainCarContinuous",
+    "CARLPendulum",
+]
+
+
+def run_carl(code: str) -> dict:
+    """Run CARL code with the import changed to this face; return its variables."""
+    namespace: dict = {}
+    exec(code.replace("from carl.", "from contextrl.carl."), namespace)
+    return namespace
+
+
+SAMPLER_EXAMPLE = """
+from carl.envs import CARLCartPole
+from carl.context.context_space import NormalFloatContextFeature, UniformFloatContextFeature
+from carl.context.sampler import ContextSampler
+
+context_distributions = [
+    NormalFloatContextFeature("gravity", mu=9.8, sigma=1),
+    UniformFloatContextFeature("length", lower=0.25, upper=1.0),
+]
+context_sampler = ContextSampler(
+    context_distributions=context_distributions,
+    context_space=CARLCartPole.get_context_space(),
+    seed=42,
+)
+contexts = context_sampler.sample_contexts(n_contexts=5)
+env = CARLCartPole(contexts=contexts)
+state, info = env.reset(seed=0)
+"""
+
+SELECTOR_EXAMPLE = """
+from carl.envs import CARLCartPole
+from carl.context.selection import StaticSelector
+
+contexts = {0: {"length": 0.4}, 1: {"length": 0.9}}
+env = CARLCartPole(contexts=contexts, context_selector=StaticSelector)
+ids = []
+for _ in range(3):
+    env.reset()
+    ids.append(env.context_id)
+"""
+
+CUSTOM_SELECTOR_EXAMPLE = """
+from carl.envs import CARLCartPole
+from carl.context.selection import AbstractSelector, CustomSelector
+
+def selector_function(inst: AbstractSelector):
+    if inst.n_calls == 0:
+        context_id = 1
+    else:
+        context_id = 0
+    return inst.contexts[inst.contexts_keys[context_id]], context_id
+
+contexts = {0: {"gravity": 5.0}, 1: {"gravity": 15.0}}
+selector = CustomSelector(contexts=contexts, selector_function=selector_function)
+env = CARLCartPole(contexts=contexts, context_selector=selector)
+ids = []
+for _ in range(3):
+    env.reset()
+    ids.append(env.context_id)
+"""
+
+VECTOR_OBS_EXAMPLE = """
+from carl.envs import CARLPendulum
+
+env = CARLPendulum(
+    contexts={0: {"l": 1.5}},
+    obs_context_features=["l", "m"],
+    obs_context_as_dict=False,
+)
+state, info = env.reset(seed=1)
+"""
+
+DEFAULTS_EXAMPLE = """
+from carl.envs import CARLCartPole
+
+default_context = CARLCartPole.get_default_context()
+features = CARLCartPole.get_context_features()
+space = CARLCartPole.get_context_space()
+"""
+
+
+def rollout(env, seed: int, steps: int, actions=None):
+    """Observations (base part) of one seeded run with fixed actions, resetting finished episodes."""
+    obs, _ = env.reset(seed=seed)
+    actions = np.random.default_rng(seed).integers(0, 2, steps) if actions is None else actions
+    out = [obs["obs"]]
+    for action in actions:
+        obs, _, terminated, truncated, _ = env.step(int(action))
+        out.append(obs["obs"])
+        if terminated or truncated:
+            obs, _ = env.reset()
+    return np.array(out)
+
+
+def test_sampler_example_gives_seeded_valid_contexts_and_a_dict_observation():
+    ns = run_carl(SAMPLER_EXAMPLE)
+    contexts, env, state = ns["contexts"], ns["env"], ns["state"]
+    assert list(contexts) == [0, 1, 2, 3, 4]
+    gravities = [c["gravity"] for c in contexts.values()]
+    lengths = [c["length"] for c in contexts.values()]
+    assert len(set(gravities)) == 5 and all(0.1 <= g <= 100 for g in gravities)
+    assert all(0.25 <= x <= 1.0 for x in lengths)
+    assert all(c["masscart"] == 1.0 for c in contexts.values())  # unlisted features keep defaults
+    assert run_carl(SAMPLER_EXAMPLE)["contexts"] == contexts  # same seed, same contexts
+    assert set(state) == {"obs", "context"} and env.observation_space.contains(state)
+    assert state["context"]["gravity"] == np.float32(gravities[0])
+    assert ns["info"]["context_id"] == env.context_id == 0
+    seen = []
+    for _ in range(6):
+        _, info = env.reset()
+        seen.append(info["context_id"])
+    assert seen == [1, 2, 3, 4, 0, 1]  # round robin by default
+    assert env.context == env.contexts[1] and env.context_selector.context_id == 1
+
+
+def test_sampler_draws_differ_by_seed_and_by_call():
+    space = CARLCartPole.get_context_space()
+    from contextrl.carl.context.context_space import UniformFloatContextFeature
+    from contextrl.carl.context.sampler import ContextSampler
+
+    def sampler(seed):
+        return ContextSampler([UniformFloatContextFeature("tau", 0.01, 0.05)], space, seed=seed)
+
+    first = sampler(0)
+    a, b = first.sample_contexts(3), first.sample_contexts(3)
+    assert a != b  # a second call draws new contexts
+    assert sampler(0).sample_contexts(3) == a and sampler(1).sample_contexts(3) != a
+
+
+def test_static_selector_keeps_the_first_context():
+    assert run_carl(SELECTOR_EXAMPLE)["ids"] == [0, 0, 0]
+
+
+def test_custom_selector_function_is_called_at_every_reset():
+    ns = run_carl(CUSTOM_SELECTOR_EXAMPLE)
+    assert ns["ids"] == [1, 0, 0]
+    assert ns["env"].step(0)[4]["context_id"] == 0
+    assert ns["env"].context["gravity"] == 5.0 and ns["selector"].n_calls == 3
+
+
+def test_vector_context_observation_lies_in_its_space():
+    ns = run_carl(VECTOR_OBS_EXAMPLE)
+    state, env = ns["state"], ns["env"]
+    np.testing.assert_allclose(state["context"], [1.5, 1.0])
+    assert state["context"].dtype == np.float32 and env.observation_space.contains(state)
+    assert isinstance(env.observation_space["context"], gymnasium.spaces.Box)
+
+
+def test_defaults_and_features_come_from_the_declarations():
+    ns = run_carl(DEFAULTS_EXAMPLE)
+    default = ns["default_context"]
+    declared = crl.make("CartPole").context_space
+    assert list(default) == list(declared.names)
+    assert default["initial_state_lower"] == -0.05  # gymnasium's start range (CARL says -0.1)
+    gravity = ns["features"]["gravity"]
+    assert (gravity.lower, gravity.upper, gravity.default_value) == (0.1, 100.0, 9.8)
+    space = ns["space"]
+    samples = space.sample_contexts(size=50)
+    for name in space.context_feature_names:  # CARL draws inf/NaN for its infinite bounds
+        low, high = space.get_lower_and_upper_bound(name)
+        values = np.array([s[name] for s in samples])
+        assert np.all(np.isfinite(values)) and np.all((values >= low) & (values <= high))
+    assert space.sample_contexts(["length"], size=2, seed=3) == space.sample_contexts(
+        ["length"], size=2, seed=3
+    )
+    assert space.verify_context({"length": 1.0}) and not space.verify_context({"length": 50.0})
+    assert not space.verify_context({"lenght": 1.0})
+    assert space.insert_defaults({"length": 1.0})["gravity"] == 9.8
+
+
+def test_masscart_acts():
+    """CARL caches the total mass at construction, so its masscart changes nothing."""
+    from contextrl.carl.context.selection import StaticSelector
+
+    env = CARLCartPole(
+        contexts={0: {"masscart": 0.5}, 1: {"masscart": 5.0}}, context_selector=StaticSelector
+    )
+    light = rollout(env, seed=0, steps=20)
+    env.context_id = 1  # with a static selector: every later episode
+    heavy = rollout(env, seed=0, steps=20)
+    assert env.context_id == 1 and env.context["masscart"] == 5.0
+    np.testing.assert_array_equal(light[0], heavy[0])  # same start state from the same seed
+    assert not np.allclose(light[1:], heavy[1:])
+
+
+def test_same_trajectory_as_the_gymnasium_environment():
+    """The face runs the one stepping path: same contexts and seed, same observations."""
+    contexts = {0: {"length": 0.3}, 1: {"length": 1.2}}
+    ours = rollout(CARLCartPole(contexts=contexts), seed=5, steps=120)
+    plain = ContextualGymEnv("CartPole", contexts=contexts, obs_context_features="all")
+    obs, _ = plain.reset(seed=5)
+    expected = [obs[:4]]
+    for action in np.random.default_rng(5).integers(0, 2, 120):
+        obs, _, terminated, truncated, _ = plain.step(int(action))
+        expected.append(obs[:4])
+        if terminated or truncated:
+            obs, _ = plain.reset()
+    np.testing.assert_array_equal(ours, np.array(expected))
+
+
+def test_seeds_are_honoured_by_start_states_and_the_random_selector():
+    from contextrl.carl.context.selection import RandomSelector
+
+    contexts = {i: {"length": 0.2 + 0.2 * i} for i in range(5)}
+
+    def ids(seed):
+        env = CARLCartPole(contexts=contexts, context_selector=RandomSelector)
+        env.reset(seed=seed)
+        return [env.context_id] + [env.reset()[1]["context_id"] for _ in range(15)]
+
+    assert ids(3) == ids(3) and ids(3) != ids(4)
+    assert len(set(ids(3))) >= 3
+    a, b = CARLCartPole(), CARLCartPole()
+    np.testing.assert_array_equal(rollout(a, 7, 30), rollout(b, 7, 30))
+    assert not np.array_equal(rollout(a, 7, 30), rollout(b, 8, 30))
+
+
+def test_ids_are_the_keys_of_the_mapping():
+    env = CARLCartPole(contexts={"short": {"length": 0.2}, "long": {"length": 2.0}})
+    _, info = env.reset(seed=0)
+    assert info["context_id"] == env.context_id == "short"
+    assert env.context_selector.context_key == "short"  # CARL answers None for the first context
+    env.reset()
+    assert env.context_id == "long" and env.context["length"] == 2.0
+    env.context_id = "short"
+    env.reset()
+    assert env.context_id == "short"
+
+
+def test_contexts_can_be_replaced():
+    env = CARLCartPole(contexts={0: {"length": 0.3}})
+    env.contexts = {7: {"length": 1.7}}
+    _, info = env.reset(seed=0)
+    assert info["context_id"] == 7 and env.context["length"] == 1.7
+    assert env.contexts[7]["gravity"] == 9.8
+
+
+def test_hidden_context_gives_an_empty_context_part():
+    env = CARLCartPole(obs_context_features=[])
+    obs, _ = env.reset(seed=0)
+    assert obs["context"] == {} and obs["obs"].shape == (4,)
+    assert env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"contexts": {0: {"lenght": 0.5}}}, "unknown context feature 'lenght'"),
+        (
+            {"contexts": {0: {"length": 50.0}}},
+            r"length: value 50 is outside its bounds \[0.05, 5\]",
+        ),
+        ({"contexts": {0: {"length": float("nan")}}}, "not finite"),
+        ({"contexts": [{"length": 0.5}]}, "mapping id -> dict"),
+        ({"context_selector": "random"}, "context_selector must be"),
+        ({"obs_context_features": ["mass"]}, "valid features"),
+        ({"obs_context_as_dict": "yes"}, "True or False"),
+    ],
+)
+def test_bad_input_is_refused_with_a_clear_error(kwargs, message):
+    with pytest.raises(crl.ContextError, match=message):
+        CARLCartPole(**kwargs)
+
+
+def test_bad_sampler_and_env_arguments_are_refused():
+    from contextrl.carl.context.context_space import UniformFloatContextFeature
+    from contextrl.carl.context.sampler import ContextSampler
+
+    space = CARLCartPole.get_context_space()
+    with pytest.raises(crl.ContextError, match="outside the feature's bounds"):
+        ContextSampler([UniformFloatContextFeature("length", 0.1, 9.0)], space, seed=0)
+    with pytest.raises(crl.ContextError, match="seed must be an integer"):
+        ContextSampler([UniformFloatContextFeature("length", 0.1, 1.0)], space, seed=None)
+    with pytest.raises(TypeError, match="contextrl environment"):
+        CARLCartPole(env=gymnasium.make("CartPole-v1"))
+    with pytest.raises(TypeError, match="runs CartPole"):
+        CARLCartPole(env=crl.make("Pendulum"))
+    with pytest.raises(crl.ContextError, match="not an id of the context set"):
+        CARLCartPole().context_id = 3
+
+
+def test_env_argument_takes_a_contextrl_environment():
+    env = CARLCartPole(env=crl.make("CartPole", max_steps=3))
+    env.reset(seed=0)
+    truncated = [env.step(0)[3] for _ in range(3)]
+    assert truncated == [False, False, True]
+
+
+def test_every_carl_name_and_module_path_exists():
+    import contextrl.carl.envs as envs
+
+    for env_id in crl.registered():
+        for alias in crl.spec(env_id).aliases:
+            if alias.startswith("CARL"):
+                cls = getattr(envs, alias)
+                assert cls.env_id == env_id and alias in envs.__all__
+    for module in ("carl_acrobot", "carl_cartpole", "carl_mountaincar", "carl_pendulum"):
+        importlib.import_module(f"contextrl.carl.envs.gymnasium.classic_control.{module}")
+    families = [("gymnasium", "classic_control"), ("gymnasium.box2d", "box2d"), ("dmc", "dmc")]
+    for path, family in [*families, ("rna", "rna")]:
+        module = importlib.import_module(f"contextrl.carl.envs.{path}")
+        for name in envs.carl_names(family):
+            assert getattr(module, name) is getattr(envs, name) and name in module.__all__
+    from contextrl.carl.envs.gymnasium.classic_control.carl_pendulum import CARLPendulum as Same
+    from contextrl.carl.utils.types import Contexts  # noqa: F401
+
+    assert Same is CARLPendulum
+    with pytest.raises(AttributeError, match="no CARL environment"):
+        envs.CARLNoSuchEnv  # noqa: B018
+
+
+def test_dmc_environment_through_the_face():
+    pytest.importorskip("dm_control")
+    from contextrl.carl.envs.dmc import CARLDmcPointMassEnv
+
+    env = CARLDmcPointMassEnv(
+        contexts={0: {"actuator_strength": 0.5}}, obs_context_features=["actuator_strength"]
+    )
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and info["context_id"] == 0
+    assert obs["context"]["actuator_strength"] == np.float32(0.5)
+    obs, reward, *_ = env.step(env.action_space.sample())
+    assert env.observation_space.contains(obs) and np.isfinite(reward)
+
+
+@pytest.mark.parametrize("name", CLASSIC_CONTROL)
+def test_gymnasium_checker_passes_for_every_classic_control_class(name):
+    import contextrl.carl.envs as envs
+    from contextrl.carl.context.selection import RandomSelector
+
+    cls = getattr(envs, name)
+    env = cls(contexts={0: {}, 1: {}}, context_selector=RandomSelector)
+    check_env(env, skip_render_check=False)
+    check_env(cls(obs_context_features=[], obs_context_as_dict=False), skip_render_check=True)
+
+
+def test_selector_subclass_and_selector_kwargs():
+    from contextrl.carl.context.selection import AbstractSelector, CustomSelector
+
+    class LastFirst(AbstractSelector):
+        def _select(self):
+            position = len(self.contexts) - 1 - self.n_calls % len(self.contexts)
+            return self.contexts[self.contexts_keys[position]], position
+
+    contexts = {"a": {"length": 0.3}, "b": {"length": 0.6}, "c": {"length": 0.9}}
+    env = CARLCartPole(contexts=contexts, context_selector=LastFirst)
+    assert [env.reset(seed=0)[1]["context_id"]] + [
+        env.reset()[1]["context_id"] for _ in range(3)
+    ] == ["c", "b", "a", "c"]
+
+    def always_b(selector):
+        return selector.contexts["b"], 1
+
+    env = CARLCartPole(
+        contexts=contexts,
+        context_selector=CustomSelector,
+        context_selector_kwargs={"selector_function": always_b},
+    )
+    env.reset(seed=0)
+    assert env.context_id == "b" and env.context["length"] == 0.6
+
+
+def test_context_part_is_fixed_per_episode_unless_noisy():
+    contexts = {0: {"length": 0.3}, 1: {"length": 1.2}}
+    env = CARLCartPole(contexts=contexts, obs_context_features=["length"])
+    first, _ = env.reset(seed=0)
+    after = env.step(0)[0]
+    assert first["context"]["length"] == after["context"]["length"] == np.float32(0.3)
+    assert env.reset()[0]["context"]["length"] == np.float32(1.2)
+    assert first["context"]["length"] == np.float32(0.3)  # an earlier observation is untouched
+    noisy = CARLCartPole(contexts=contexts, obs_context_features=["length"], obs_context_noise=0.2)
+    values = {float(noisy.reset(seed=0)[0]["context"]["length"][0])}
+    values |= {float(noisy.step(0)[0]["context"]["length"][0]) for _ in range(5)}
+    assert len(values) == 6 and all(0.05 <= v <= 5.0 for v in values)

@@ -1,0 +1,102 @@
+"""The gymnax face: gymnax's calls and conventions over the core, params as contexts, PPO learning."""
+
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import contextrl as crl
+import contextrl.gymnax as gymnax
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("env_id", gymnax.registered_envs())
+def test_every_jax_env_has_the_gymnax_calls(env_id):
+    env, params = gymnax.make(env_id)
+    core = crl.make(env_id)
+    assert params == core.default_context()
+    key = jax.random.key(0)
+    obs, state = env.reset(key, params)
+    assert obs.shape == env.observation_space(params).shape
+    action = env.action_space(params).sample(jax.random.key(1))
+    obs, state, reward, done, info = env.step(jax.random.key(2), state, action, params)
+    core_state, _ = jax.jit(core.reset)(key, params)
+    _, timestep = jax.jit(core.step)(jax.random.key(2), core_state, action, params)
+    np.testing.assert_array_equal(obs, timestep.obs)  # the face is the core's step
+    assert float(reward) == float(timestep.reward) and bool(done) == bool(timestep.done)
+    assert set(info) == {"terminated", "truncated", "discount", "final_observation"}
+    space = core.action_space
+    assert env.num_actions == (space.n if hasattr(space, "n") else space.shape[0])
+
+
+def test_ids_in_gymnax_and_carl_spelling_and_clear_errors():
+    assert gymnax.make("CartPole-v1")[0].name == gymnax.make("CARLCartPole")[0].name == "CartPole"
+    assert gymnax.make("MountainCarContinuous-v0")[0].name == "MountainCarContinuous"
+    with pytest.raises(KeyError, match="unknown environment"):
+        gymnax.make("CartPoel-v1")
+    if "DmcWalker" in crl.registered():
+        with pytest.raises(ValueError, match="steps on the host"):
+            gymnax.make("DmcWalker")
+
+
+def test_auto_reset_keeps_the_final_observation_and_flags_termination():
+    env, params = gymnax.make("CartPole")
+    obs, state = env.reset(jax.random.key(0), params)
+    for t in range(100):
+        previous = obs
+        obs, state, reward, done, info = env.step(jax.random.key(t + 1), state, 1, params)
+        if done:
+            break
+    assert bool(done) and bool(info["terminated"]) and not bool(info["truncated"])
+    assert float(info["discount"]) == 0.0 and float(reward) == 1.0
+    final = np.asarray(info["final_observation"])
+    assert abs(final[2]) > 12 * 2 * np.pi / 360 or abs(final[0]) > 2.4  # the pole fell
+    assert not np.array_equal(final, previous)
+    assert np.all(np.abs(np.asarray(obs)) <= 0.05)  # already the next episode's start
+    assert int(state.time) == 0
+
+
+def test_truncation_at_the_time_limit_is_not_a_termination():
+    env, params = gymnax.make("Pendulum", max_steps=4)
+    obs, state = env.reset(jax.random.key(0), params)
+    flags = []
+    for t in range(4):
+        obs, state, _, done, info = env.step(jax.random.key(t), state, jnp.zeros(1), params)
+        flags.append((bool(done), bool(info["truncated"]), float(info["discount"])))
+    assert flags == [(False, False, 1.0)] * 3 + [(True, True, 1.0)]
+
+
+def test_params_are_contexts_and_vmap_gives_each_copy_its_own():
+    env, params = gymnax.make("CartPole")
+    assert float(params.replace(length=0.8).length) == pytest.approx(0.8)
+    with pytest.raises(crl.ContextError, match="length"):
+        params.replace(length=50.0)
+    batch = crl.sample(params, {"length": crl.Uniform(0.25, 2.0)}, 4, jax.random.key(0))
+    keys = jax.random.split(jax.random.key(1), 4)
+    same_key = jnp.broadcast_to(jax.random.key(1), (4,))
+    obs, state = jax.vmap(env.reset)(same_key, batch)
+    np.testing.assert_array_equal(obs[0], obs[3])  # same key, same start state
+    step = jax.jit(jax.vmap(env.step))
+    for _ in range(10):
+        obs, state, *_ = step(keys, state, jnp.ones(4, jnp.int32), batch)
+    assert len({tuple(np.round(np.asarray(o), 6)) for o in obs}) == 4  # each pole its own motion
+    single_obs, single_state = env.reset(jax.random.key(1), batch[2])
+    for _ in range(10):
+        single_obs, single_state, *_ = env.step(keys[2], single_state, 1, batch[2])
+    np.testing.assert_allclose(single_obs, obs[2], rtol=1e-6)
+
+
+def test_purejaxrl_style_ppo_learns_contextual_cartpole():
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        from purejaxrl_ppo_cartpole import CONFIG, make_train, returns_per_update
+    finally:
+        sys.path.remove(str(EXAMPLES))
+    out = jax.jit(make_train(CONFIG))(jax.random.key(42))
+    returns = np.asarray(returns_per_update(out["metrics"]))
+    first, last = np.nanmean(returns[:5]), np.nanmean(returns[-len(returns) // 10 :])
+    assert first < 60 and last > 300, (first, last)
