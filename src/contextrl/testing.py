@@ -122,9 +122,12 @@ def check_feature_effects(
     effects = jax.jit(jax.vmap(_effects(env, steps)))
     keys = jax.random.split(key, num_keys)
     observed, problems = {}, []
+    # Every feature's batch is padded (by repeating its pairs) to one size, so ``effects`` compiles once.
+    size = num_bases * num_keys * max(len(probe_values(f)) for f in space.features.values())
     for name, f in space.features.items():
         probes = probe_values(f)
         pairs = [(b, p, k) for b in range(num_bases) for p in probes for k in range(num_keys)]
+        pairs = [pairs[i % len(pairs)] for i in range(size)]
         base_index = np.array([b for b, _, _ in pairs])
         base = bases[base_index]
         changed_values = jnp.asarray(np.array([p for _, p, _ in pairs]), f.dtype)

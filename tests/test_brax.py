@@ -1,0 +1,219 @@
+"""The Brax family: every task matches brax step by step at the default context, every declared feature
+changes the trajectory, each copy of one vmapped batch runs its own physics (the CARL failure cannot
+happen), the public checker passes, time limits truncate, and the gymnasium face works.
+
+MJX compiles slowly on CPU, so each configuration is compiled once (``_rollouts`` is cached) and runs
+few steps with few copies: one program per task holds brax's own rollout and ours over a batch of
+contexts (the default one, one per feature moved off its default, and CARL's failure cases).
+"""
+
+import dataclasses
+import functools
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+pytest.importorskip("brax")
+
+import contextrl as crl  # noqa: E402
+from contextrl.context.features import ContextError  # noqa: E402
+from contextrl.envs import brax as family  # noqa: E402
+from contextrl.testing import check_env, probe_values  # noqa: E402
+
+STEPS = 10
+NAMES = [cls.__name__ for cls in family.ENVIRONMENTS]
+
+
+def moved_value(feature):
+    """A value off the default: a different compass code, else halfway to the upper bound (or the
+    lower one where the default sits at the top)."""
+    if feature.kind == "categorical":
+        return probe_values(feature)[0]
+    if feature.default < feature.upper:
+        return (feature.default + feature.upper) / 2
+    return (feature.default + feature.lower) / 2
+
+
+def batch_rows(env) -> list[tuple[str, dict]]:
+    """(label, feature values) per copy: the default, each feature moved alone, CARL's cases."""
+    rows = [("default", {})]
+    rows += [(name, {name: moved_value(f)}) for name, f in env.context_space.features.items()]
+    rows += [("gravity 9.8", {"gravity": 9.8}), ("gravity 1", {"gravity": 1.0})]
+    if "mass_torso" in env.context_space.names:
+        torso = env.context_space.features["mass_torso"].default
+        rows.append(("torso mass x10", {"mass_torso": 10 * torso}))
+    return rows
+
+
+@functools.cache
+def _rollouts(name: str, backend: str = "mjx", goal: bool = False):
+    """brax's own rollout and ours over a batch of contexts, from one key and one action sequence.
+
+    Returns (rows, ours, theirs): ``ours`` maps "obs", "reward", "terminated" to arrays of shape
+    (steps + 1 for obs | steps, copies, ...); ``theirs`` the same for brax's unbatched environment.
+    """
+    from brax import envs as brax_envs
+
+    env = getattr(family, name)(backend=backend, goal=goal)
+    stock = brax_envs.get_environment(env.brax_name, backend=backend)
+    rows = batch_rows(env)
+    contexts = env.context_space.stack([env.context(**values) for _, values in rows])
+    key, action_key = jax.random.split(jax.random.key(7))
+    actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, STEPS))
+
+    def run(key, contexts, actions):
+        ours = jax.vmap(env.init, in_axes=(None, 0))(key, contexts)
+        theirs = stock.reset(key)
+        transition = jax.vmap(env.transition, in_axes=(None, 0, None, 0))
+
+        def body(carry, action):
+            ours, theirs = carry
+            ours, reward, terminated = transition(key, ours, action, contexts)
+            theirs = stock.step(theirs, action)
+            return (ours, theirs), (
+                jax.vmap(env.observe)(ours, contexts),
+                reward,
+                terminated,
+                theirs.obs,
+                theirs.reward,
+                theirs.done > 0.5,
+            )
+
+        first = (jax.vmap(env.observe)(ours, contexts), theirs.obs)
+        _, trajectory = jax.lax.scan(body, (ours, theirs), actions)
+        return first, trajectory
+
+    (first_ours, first_theirs), trajectory = jax.jit(run)(key, contexts, actions)
+    obs, reward, terminated, their_obs, their_reward, their_done = map(np.asarray, trajectory)
+    ours = {
+        "obs": np.concatenate([np.asarray(first_ours)[None], obs]),
+        "reward": reward,
+        "terminated": terminated,
+    }
+    theirs = {
+        "obs": np.concatenate([np.asarray(first_theirs)[None], their_obs]),
+        "reward": their_reward,
+        "terminated": their_done,
+    }
+    return rows, ours, theirs
+
+
+def copy_trajectory(ours, index):
+    return {k: v[:, index] for k, v in ours.items()}
+
+
+def assert_matches_brax(ours, theirs):
+    default = copy_trajectory(ours, 0)
+    np.testing.assert_allclose(default["obs"], theirs["obs"], rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(default["reward"], theirs["reward"], rtol=1e-5, atol=1e-5)
+    np.testing.assert_array_equal(default["terminated"], theirs["terminated"])
+
+
+def differs(ours, a, b) -> bool:
+    return any(not np.array_equal(v[:, a], v[:, b], equal_nan=True) for v in ours.values())
+
+
+def assert_every_feature_acts(rows, ours):
+    silent = [label for i, (label, _) in enumerate(rows) if i > 0 and not differs(ours, 0, i)]
+    assert not silent, f"features that left the trajectory unchanged: {silent}"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_default_context_matches_brax_and_every_feature_acts(name):
+    rows, ours, theirs = _rollouts(name)
+    assert_matches_brax(ours, theirs)
+    assert np.all(np.isfinite(ours["obs"])) and np.all(np.isfinite(ours["reward"]))
+    assert_every_feature_acts(rows, ours)
+
+
+def test_carl_failure_cannot_happen_gravity_and_torso_mass_act_in_one_batch():
+    """CARL's Brax contexts gave identical trajectories for gravity 9.8 vs 1 and torso mass ×10."""
+    rows, ours, _ = _rollouts("Ant")
+    index = {label: i for i, (label, _) in enumerate(rows)}
+    assert differs(ours, index["gravity 9.8"], index["gravity 1"])
+    assert differs(ours, index["default"], index["torso mass x10"])
+    # Lower gravity: the ant falls more slowly (z of the torso is the first observation).
+    low, normal = ours["obs"][:, index["gravity 1"], 0], ours["obs"][:, index["gravity 9.8"], 0]
+    assert low[-1] > normal[-1]
+
+
+def test_spring_pipeline_matches_brax_and_models_elasticity_and_angular_damping():
+    rows, ours, theirs = _rollouts("HalfCheetah", backend="spring")
+    assert {"elasticity", "ang_damping"} <= {label for label, _ in rows}
+    assert_matches_brax(ours, theirs)
+    assert_every_feature_acts(rows, ours)
+
+
+def test_goal_variant_rewards_progress_and_ends_at_the_target():
+    rows, ours, _ = _rollouts("Ant", goal=True)
+    assert_every_feature_acts(rows, ours)
+    index = {label: i for i, (label, _) in enumerate(rows)}
+    # A radius wider than the target's distance: reached at the first step, the episode ends.
+    assert ours["terminated"][0, index["target_radius"]]
+    assert not ours["terminated"][:, index["default"]].any()
+
+
+@pytest.mark.parametrize(
+    "name, options",
+    [("InvertedPendulum", {}), ("HalfCheetah", {"goal": True})],
+)
+def test_public_checker_passes(name, options):
+    """The full checker: no recompilation, same key same trajectory, truncation, declared effects."""
+    env = getattr(family, name)(max_steps=4, **options)
+    check_env(env, num_contexts=4, steps=9)
+
+
+def test_time_limit_truncates_through_the_gymnasium_face():
+    env = gymnasium.make(
+        "contextrl/BraxInvertedPendulum-v0",
+        contexts=[{"mass_pole": 2.0}, {"mass_pole": 8.0}],
+        max_steps=3,
+        render_mode="rgb_array",
+    )
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and info["context"]["mass_pole"] == 2.0
+    ends = []
+    for _ in range(3):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(1, np.float32))
+        ends.append((terminated, truncated))
+    assert ends == [(False, False), (False, False), (False, True)]
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.std() > 0
+    env.close()
+
+
+def test_registered_with_carl_aliases_and_validated():
+    assert crl.registered("brax") == sorted(f"Brax{n}" for n in NAMES)
+    assert crl.spec("CARLBraxAnt").id == "BraxAnt"
+    env = crl.make("CARLBraxPusher")
+    assert env.default_context().gravity == 0.0  # the stock pusher has no gravity
+    with pytest.raises(ContextError, match=r"mass_torso.*bounds"):
+        crl.make("BraxAnt").context(mass_torso=100.0)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        family.Ant(backend="warp")
+    with pytest.raises(ValueError, match="no goal variant"):
+        family.Reacher(goal=True)
+    assert "elasticity" not in env.context_space.names  # MJX does not model restitution
+    assert "viscosity" not in family.Ant(fluid=False).context_space.names
+
+
+def test_context_types_are_shared_per_configuration_and_defaults_are_the_stock_model():
+    assert family.Ant().context_type is family.Ant(max_steps=5).context_type
+    assert family.Ant(goal=True).context_type is not family.Ant().context_type
+    for cls in family.ENVIRONMENTS:
+        env = cls()
+        stock = env.stock_system
+        built = env.system(env.default_context())
+        for path in ("body_mass", "body_inertia", "opt.gravity", "geom_friction", "actuator_gear"):
+            get = functools.partial(functools.reduce, getattr, path.split("."))
+            np.testing.assert_array_equal(np.asarray(get(built)), np.asarray(get(stock)))
+
+
+def test_dataclass_replace_keeps_the_loaded_model():
+    env = family.Hopper()
+    shorter = dataclasses.replace(env, max_steps=10)
+    assert shorter.stock_system is env.stock_system and shorter.max_steps == 10
+    assert jnp.shape(shorter.action_space.low) == (3,)
