@@ -82,7 +82,8 @@ def compare_with_brax(names, n: int) -> None:
         _, dry = steps_per_second(ours(getattr(family, name)(fluid=False), n), n, STEPS)
         print(
             f"{name:>14} {theirs:>12.4g} {mine:>10.4g} {mine / theirs:>6.2f} {dry:>15.4g}"
-            f" {dry / theirs:>6.2f}"
+            f" {dry / theirs:>6.2f}",
+            flush=True,
         )
 
 
@@ -105,7 +106,8 @@ def no_recompilation(name: str) -> None:
         compiled(key, state, action, env.context(**{feature_name: value}))
     print(
         f"\n{name}: one compiled step called with {len(env.context_space) + 1} different contexts,"
-        f" traced {len(traces)} time(s)"
+        f" traced {len(traces)} time(s)",
+        flush=True,
     )
 
 
@@ -120,7 +122,10 @@ def main() -> None:
     STEPS = args.steps
     names = args.envs.split(",")
     sizes = [int(s) for s in args.sizes.split(",")]
-    print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {STEPS} random steps per copy")
+    print(
+        f"jax {jax.__version__} on {jax.devices()[0].platform}, {STEPS} random steps per copy",
+        flush=True,
+    )
     no_recompilation("InvertedPendulum")
     if not args.skip_compare:
         compare_with_brax([n for n in ("Ant", "HalfCheetah") if n in names], 256)
