@@ -89,13 +89,14 @@ class BraxEnv(Env):
     ``backend`` picks brax's physics pipeline (MJX, the maintained one, by default). ``goal=True`` (the
     walkers only) is CARL's goal variant: the reward is the progress toward a target ``target_distance``
     away in the compass direction ``target_direction``, and reaching it (within ``target_radius``) ends
-    the episode. ``fluid=False`` drops the medium model (and the ``viscosity`` feature) for speed; only
-    MJX has one that works here (brax's own, used by the other pipelines, fails under jax 0.10).
+    the episode. ``fluid=True`` (MJX only) adds MuJoCo's medium model and with it the ``viscosity``
+    feature; it is off by default because MJX then evaluates the medium at every physics step, about
+    4× the cost of a step on CPU (brax's own medium model, of the other pipelines, fails under jax 0.10).
     """
 
     backend: str = "mjx"
     goal: bool = False
-    fluid: bool = True
+    fluid: bool = False
 
     brax_name: ClassVar[str]
     observation_size: ClassVar[int]
@@ -115,8 +116,8 @@ class BraxEnv(Env):
             raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
         if self.goal and not self.goal_directions:
             raise ValueError(f"{self.name} has no goal variant; goal=True is for the walkers")
-        if self.backend != "mjx":
-            object.__setattr__(self, "fluid", False)
+        if self.fluid and self.backend != "mjx":
+            raise ValueError(f"fluid=True needs the mjx backend, got backend={self.backend!r}")
         features = context_class(type(self), self.backend, self.goal, self.fluid)
         object.__setattr__(self, "context_type", features)
         object.__setattr__(self, "_brax", load_brax_env(self.brax_name, self.backend, self.fluid))
