@@ -82,7 +82,7 @@ def _effects(env: Env, steps: int):
             )
             shown = jnp.stack(
                 [
-                    _differs(next_base, next_changed),
+                    _differs(env.state_variables(next_base), env.state_variables(next_changed)),
                     _differs(reward_base, reward_changed),
                     term_base != term_changed,
                     _differs(env.observe(state, base), env.observe(state, changed)),
@@ -97,7 +97,9 @@ def _effects(env: Env, steps: int):
         _, shown = jax.lax.scan(body, start_base, jax.random.split(run_key, steps))
         dynamics, reward, termination, observation = jnp.any(shown, axis=0)
         return {
-            "start_state": _differs(start_base, start_changed),
+            "start_state": _differs(
+                env.state_variables(start_base), env.state_variables(start_changed)
+            ),
             "dynamics": dynamics,
             "reward": reward,
             "termination": termination,

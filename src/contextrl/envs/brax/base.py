@@ -296,6 +296,10 @@ class BraxEnv(Env):
     def observe(self, state, context) -> jax.Array:
         return state.obs
 
+    def state_variables(self, state):
+        """Joint positions and velocities: the rest of brax's state is derived from them and the model."""
+        return state.pipeline_state.q, state.pipeline_state.qd
+
     def target(self, context) -> jax.Array:
         """The goal variant's target (x, y) in the world."""
         angle = compass_angle(self.goal_directions, context.target_direction)

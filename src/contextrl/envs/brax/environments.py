@@ -196,6 +196,11 @@ class Pusher(BraxEnv):
             "link.transform.pos": jnp.asarray(stock.link.transform.pos).at[link].set(goal),
         }
 
+    def state_variables(self, state):
+        """Joint positions and velocities, and where the goal is (a body the context places)."""
+        link = self.stock_system.link_names.index(GOAL_BODY)
+        return (*super().state_variables(state), state.pipeline_state.x.pos[link])
+
     @property
     def action_space(self):
         # brax's Pusher maps actions in [−1, 1] onto the actuators' control ranges itself.
