@@ -9,6 +9,7 @@ contexts (the default one, one per feature moved off its default, and CARL's fai
 
 import dataclasses
 import functools
+import importlib.util
 
 import gymnasium
 import gymnasium.utils.env_checker
@@ -17,7 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-pytest.importorskip("brax")
+# Checked without importing brax: brax imports MuJoCo, which must see MUJOCO_GL=egl (set by the family).
+if importlib.util.find_spec("brax") is None:
+    pytest.skip("brax is not installed", allow_module_level=True)
 
 import contextrl as crl  # noqa: E402
 from contextrl.agents import ppo, sac  # noqa: E402
