@@ -323,7 +323,7 @@ def context_class(env_class: type, backend: str, goal: bool, fluid: bool) -> typ
     name = env_class.__name__
     name += "Goal" if goal else ""
     name += "" if backend == "mjx" else backend.capitalize()
-    name += "" if fluid else "NoFluid"
+    name += "Fluid" if fluid else ""
     name += "Context"
     namespace = {
         "__annotations__": {n: float for n in fields},
