@@ -47,7 +47,8 @@ def batch_rows(env) -> list[tuple[str, dict]]:
     """(label, feature values) per copy: the default, each feature moved alone, CARL's cases."""
     rows = [("default", {})]
     rows += [(name, {name: moved_value(f)}) for name, f in env.context_space.features.items()]
-    rows += [("gravity 9.8", {"gravity": 9.8}), ("gravity 1", {"gravity": 1.0})]
+    if "gravity" in env.context_space.names:
+        rows += [("gravity 9.8", {"gravity": 9.8}), ("gravity 1", {"gravity": 1.0})]
     if "mass_torso" in env.context_space.names:
         torso = env.context_space.features["mass_torso"].default
         rows.append(("torso mass x10", {"mass_torso": 10 * torso}))

@@ -103,6 +103,8 @@ class BraxEnv(Env):
     # feature name -> (brax link name, stock mass in kg)
     masses: ClassVar[dict[str, tuple[str, float]]] = {}
     stock_gravity: ClassVar[float] = 9.81
+    # False where gravity cannot act (Reacher's arm moves in the horizontal plane).
+    has_gravity: ClassVar[bool] = True
     stock_angular_damping: ClassVar[float] = 0.0
     has_contacts: ClassVar[bool] = True
     has_joint_damping: ClassVar[bool] = True
@@ -130,7 +132,9 @@ class BraxEnv(Env):
         gravity_doc = "gravitational acceleration, pointing down"
         if cls.stock_gravity == 0.0:
             gravity_doc += "; the stock model has none"
-        fields = {"gravity": feature(cls.stock_gravity, 0.0, 30.0, unit="m/s²", doc=gravity_doc)}
+        fields = {}
+        if cls.has_gravity:
+            fields["gravity"] = feature(cls.stock_gravity, 0.0, 30.0, unit="m/s²", doc=gravity_doc)
         if cls.has_contacts:
             fields["friction"] = feature(
                 1.0, 0.0, 5.0, doc="scale of every geom's stock sliding friction"
@@ -194,8 +198,10 @@ class BraxEnv(Env):
         """The stock system with every field the context sets replaced (works on traced contexts)."""
         stock = self._brax.sys
         values = context.as_dict()
-        gravity = jnp.asarray(stock.opt.gravity).at[2].set(-values["gravity"])
-        changes = {"opt.gravity": gravity, "gravity": gravity}
+        changes = {}
+        if "gravity" in values:
+            gravity = jnp.asarray(stock.opt.gravity).at[2].set(-values["gravity"])
+            changes.update({"opt.gravity": gravity, "gravity": gravity})
         if "friction" in values:
             friction = jnp.asarray(stock.geom_friction)
             changes["geom_friction"] = friction.at[:, 0].multiply(values["friction"])

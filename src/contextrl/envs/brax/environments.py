@@ -147,6 +147,7 @@ class Reacher(BraxEnv):
     observation_size = 11
     masses = {"mass_body0": ("body0", 0.035604715), "mass_body1": ("body1", 0.039793506)}
     has_contacts = False
+    has_gravity = False  # the arm turns about vertical axes: gravity does no work on it
 
 
 GOAL_BODY = "goal"
