@@ -133,10 +133,13 @@ def differs(ours, a, b) -> bool:
 def assert_finite_while_running(ours):
     """Every copy stays finite until its episode ends (the rollout steps on past an end, where a
     fallen humanoid under random actions may diverge; a real episode restarts there)."""
-    ended_before = np.cumsum(ours["terminated"], axis=0) > 0
-    running = np.concatenate([np.ones_like(ended_before[:1]), ~ended_before])
-    assert np.all(np.isfinite(ours["obs"][running])), "non-finite observation mid-episode"
-    assert np.all(np.isfinite(ours["reward"][running[:-1]])), "non-finite reward mid-episode"
+    ended = np.cumsum(ours["terminated"], axis=0) > 0  # [t]: the episode ended at step t or before
+    stepping = np.concatenate(
+        [np.ones_like(ended[:1]), ~ended[:-1]]
+    )  # [t]: step t is taken mid-episode
+    after = np.concatenate([np.ones_like(ended[:1]), stepping])  # the first obs, then each step's
+    assert np.all(np.isfinite(ours["reward"][stepping])), "non-finite reward mid-episode"
+    assert np.all(np.isfinite(ours["obs"][after])), "non-finite observation mid-episode"
 
 
 def assert_every_feature_acts(rows, ours):
