@@ -106,8 +106,12 @@ class BraxEnv(Env):
     # False where gravity cannot act (Reacher's arm moves in the horizontal plane).
     has_gravity: ClassVar[bool] = True
     stock_angular_damping: ClassVar[float] = 0.0
-    has_contacts: ClassVar[bool] = True
+    # False where friction cannot act or could not be shown to (no contacts; Pusher's object is touched
+    # only once the arm reaches it, and nothing presses it on the table without gravity).
+    has_friction: ClassVar[bool] = True
     has_joint_damping: ClassVar[bool] = True
+    # MJX integrates joint damping explicitly in brax's tasks: too much makes light links diverge.
+    max_joint_damping: ClassVar[float] = 10.0
     has_joint_stiffness: ClassVar[bool] = False
     # The goal variant's compass codes; empty for tasks without one.
     goal_directions: ClassVar[tuple[str, ...]] = ()
@@ -135,7 +139,7 @@ class BraxEnv(Env):
         fields = {}
         if cls.has_gravity:
             fields["gravity"] = feature(cls.stock_gravity, 0.0, 30.0, unit="m/s²", doc=gravity_doc)
-        if cls.has_contacts:
+        if cls.has_friction:
             fields["friction"] = feature(
                 1.0, 0.0, 5.0, doc="scale of every geom's stock sliding friction"
             )
@@ -162,7 +166,7 @@ class BraxEnv(Env):
         )
         if cls.has_joint_damping and backend in JOINT_DAMPING_BACKENDS:
             fields["joint_damping"] = feature(
-                1.0, 0.0, 10.0, doc="scale of every joint's stock damping"
+                1.0, 0.0, cls.max_joint_damping, doc="scale of every joint's stock damping"
             )
         if cls.has_joint_stiffness and backend in JOINT_STIFFNESS_BACKENDS:
             fields["joint_stiffness"] = feature(

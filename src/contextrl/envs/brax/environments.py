@@ -101,6 +101,7 @@ class Humanoid(BraxEnv):
     masses = HUMANOID_MASSES
     stock_angular_damping = -0.05
     has_joint_stiffness = True
+    max_joint_damping = 2.0  # 5.5× the stock damping already diverges (the hands are light)
     goal_directions = COMPASS
 
 
@@ -113,6 +114,7 @@ class HumanoidStandup(BraxEnv):
     masses = HUMANOID_MASSES
     stock_angular_damping = -0.05
     has_joint_stiffness = True
+    max_joint_damping = 2.0  # 5.5× the stock damping already diverges (the hands are light)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,7 +124,7 @@ class InvertedPendulum(BraxEnv):
     brax_name = "inverted_pendulum"
     observation_size = 4
     masses = {"mass_cart": ("cart", 10.471975), "mass_pole": ("pole", 5.0185914)}
-    has_contacts = False
+    has_friction = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,7 +138,7 @@ class InvertedDoublePendulum(BraxEnv):
         "mass_pole": ("pole", 4.1987386),
         "mass_pole2": ("pole2", 4.1987386),
     }
-    has_contacts = False
+    has_friction = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,7 +148,7 @@ class Reacher(BraxEnv):
     brax_name = "reacher"
     observation_size = 11
     masses = {"mass_body0": ("body0", 0.035604715), "mass_body1": ("body1", 0.039793506)}
-    has_contacts = False
+    has_friction = False
     has_gravity = False  # the arm turns about vertical axes: gravity does no work on it
 
 
@@ -167,9 +169,9 @@ class Pusher(BraxEnv):
         "mass_forearm_roll": ("r_forearm_roll_link", 0.92818356),
         "mass_wrist_flex": ("r_wrist_flex_link", 0.005026548),
         "mass_wrist_roll": ("r_wrist_roll_link", 0.18346901),
-        "mass_object": ("object", 0.0018325957),
     }
     stock_gravity = 0.0
+    has_friction = False
 
     @classmethod
     def task_fields(cls):
