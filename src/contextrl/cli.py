@@ -234,7 +234,7 @@ def record(
     from contextrl.render.animation import side_by_side
 
     envs = [ContextualGymEnv(env_id, contexts=c or None, render_mode="rgb_array") for c in contexts]
-    if not crl.spec(env_id).host:
+    if not crl.spec(env_id).host and not hasattr(envs[0].contextrl_env, "render_state"):
         renderer = renderer_for(envs[0].contextrl_env)
         box = union_box(
             [

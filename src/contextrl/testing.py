@@ -82,7 +82,7 @@ def _effects(env: Env, steps: int):
             )
             shown = jnp.stack(
                 [
-                    _differs(next_base, next_changed),
+                    _differs(env.state_variables(next_base), env.state_variables(next_changed)),
                     _differs(reward_base, reward_changed),
                     term_base != term_changed,
                     _differs(env.observe(state, base), env.observe(state, changed)),
@@ -97,7 +97,9 @@ def _effects(env: Env, steps: int):
         _, shown = jax.lax.scan(body, start_base, jax.random.split(run_key, steps))
         dynamics, reward, termination, observation = jnp.any(shown, axis=0)
         return {
-            "start_state": _differs(start_base, start_changed),
+            "start_state": _differs(
+                env.state_variables(start_base), env.state_variables(start_changed)
+            ),
             "dynamics": dynamics,
             "reward": reward,
             "termination": termination,
@@ -122,9 +124,12 @@ def check_feature_effects(
     effects = jax.jit(jax.vmap(_effects(env, steps)))
     keys = jax.random.split(key, num_keys)
     observed, problems = {}, []
+    # Every feature's batch is padded (by repeating its pairs) to one size, so ``effects`` compiles once.
+    size = num_bases * num_keys * max(len(probe_values(f)) for f in space.features.values())
     for name, f in space.features.items():
         probes = probe_values(f)
         pairs = [(b, p, k) for b in range(num_bases) for p in probes for k in range(num_keys)]
+        pairs = [pairs[i % len(pairs)] for i in range(size)]
         base_index = np.array([b for b, _, _ in pairs])
         base = bases[base_index]
         changed_values = jnp.asarray(np.array([p for _, p, _ in pairs]), f.dtype)

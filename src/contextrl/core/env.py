@@ -95,6 +95,12 @@ class Env:
         """The original environment's observation of ``state``."""
         raise NotImplementedError
 
+    def state_variables(self, state) -> Any:
+        """The variables that make up ``state`` (positions, velocities…), without quantities a simulator
+        caches from the model (a mass matrix depends on the masses). The checker compares these when it
+        asks whether a feature changed the start state or the next state; by default the whole state."""
+        return state
+
     @property
     def action_space(self) -> Discrete | Box:
         raise NotImplementedError

@@ -30,6 +30,33 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
         _factory = functools.partial(_make_dmc, _name)
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
 
+# Brax ids: "Brax" + the class name; CARL's names ("CARLBraxAnt", ...) as aliases.
+BRAX_ENVIRONMENTS = (
+    "Ant",
+    "HalfCheetah",
+    "Hopper",
+    "Walker2d",
+    "Humanoid",
+    "HumanoidStandup",
+    "InvertedPendulum",
+    "InvertedDoublePendulum",
+    "Reacher",
+    "Pusher",
+)
+
+
+def _make_brax(name: str, **kwargs):
+    """Build a Brax environment; brax (slow to import) is imported when the first one is made."""
+    from contextrl.envs import brax
+
+    return getattr(brax, name)(**kwargs)
+
+
+if importlib.util.find_spec("brax") is not None:  # the optional `brax` extra
+    for _name in BRAX_ENVIRONMENTS:
+        _factory = functools.partial(_make_brax, _name)
+        register(f"Brax{_name}", _factory, family="brax", aliases=(f"CARLBrax{_name}",))
+
 BOX2D_ENVIRONMENTS = {  # id: (class name, constructor arguments, CARL's names)
     "LunarLander": ("LunarLander", {}, ("CARLLunarLander",)),
     "LunarLanderContinuous": ("LunarLander", {"continuous": True}, ()),

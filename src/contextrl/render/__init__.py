@@ -30,7 +30,10 @@ def union_box(boxes: Sequence[tuple[float, float, float, float]]) -> tuple[float
 
 
 def draw(env: Any, physics: Any, context: Any, world_box=None, width: int = FRAME_WIDTH):
-    """An RGB frame (H, W, 3, uint8) of ``physics`` under ``context`` for a JAX environment."""
+    """An RGB frame (H, W, 3, uint8) of ``physics`` under ``context`` for a JAX environment (drawn by
+    the environment itself when it has a ``render_state``, as the MuJoCo-based Brax tasks do)."""
+    if hasattr(env, "render_state"):
+        return env.render_state(physics, context)
     renderer = renderer_for(env)
     box = renderer.world_box(context) if world_box is None else world_box
     height = max(1, round(width * (box[3] - box[2]) / (box[1] - box[0])))

@@ -1,0 +1,296 @@
+"""The Brax family: every task matches brax step by step at the default context, every declared feature
+changes the trajectory, each copy of one vmapped batch runs its own physics (the CARL failure cannot
+happen), the public checker passes, time limits truncate, and the gymnasium face works.
+
+MJX compiles slowly on CPU, so each configuration is compiled once (``_rollouts`` is cached) and runs
+few steps with few copies: one program per task holds brax's own rollout and ours over a batch of
+contexts (the default one, one per feature moved off its default, and CARL's failure cases).
+"""
+
+import dataclasses
+import functools
+import importlib.util
+
+import gymnasium
+import gymnasium.utils.env_checker
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+# Checked without importing brax: brax imports MuJoCo, which must see MUJOCO_GL=egl (set by the family).
+if importlib.util.find_spec("brax") is None:
+    pytest.skip("brax is not installed", allow_module_level=True)
+
+import contextrl as crl  # noqa: E402
+from contextrl.agents import ppo, sac  # noqa: E402
+from contextrl.context.features import ContextError  # noqa: E402
+from contextrl.envs import brax as family  # noqa: E402
+from contextrl.testing import check_env, probe_values  # noqa: E402
+
+STEPS = 30  # long enough for every walker's feet to reach the ground
+PARITY_STEPS = 10  # contacts amplify float rounding; brax's own rollout is compared over these
+NAMES = [cls.__name__ for cls in family.ENVIRONMENTS]
+
+
+def moved_value(feature):
+    """A value off the default: a different compass code, else halfway to the upper bound (or the
+    lower one where the default sits at the top)."""
+    if feature.kind == "categorical":
+        return probe_values(feature)[0]
+    if feature.default < feature.upper:
+        return (feature.default + feature.upper) / 2
+    return (feature.default + feature.lower) / 2
+
+
+def batch_rows(env) -> list[tuple[str, dict]]:
+    """(label, feature values) per copy: the default, each feature moved alone, CARL's cases."""
+    rows = [("default", {})]
+    rows += [(name, {name: moved_value(f)}) for name, f in env.context_space.features.items()]
+    if "gravity" in env.context_space.names:
+        rows += [("gravity 9.8", {"gravity": 9.8}), ("gravity 1", {"gravity": 1.0})]
+    if "mass_torso" in env.context_space.names:
+        torso = env.context_space.features["mass_torso"].default
+        rows.append(("torso mass x10", {"mass_torso": 10 * torso}))
+    return rows
+
+
+@functools.cache
+def _rollouts(name: str, backend: str = "mjx", goal: bool = False, fluid: bool = False):
+    """brax's own rollout and ours over a batch of contexts, from one key and one action sequence.
+
+    Returns (rows, ours, theirs): ``ours`` maps "obs", "reward", "terminated" to arrays of shape
+    (steps + 1 for obs | steps, copies, ...); ``theirs`` the same for brax's unbatched environment.
+    """
+    from brax import envs as brax_envs
+
+    env = getattr(family, name)(backend=backend, goal=goal, fluid=fluid)
+    stock = brax_envs.get_environment(env.brax_name, backend=backend)
+    rows = batch_rows(env)
+    contexts = env.context_space.stack([env.context(**values) for _, values in rows])
+    key, action_key = jax.random.split(jax.random.key(7))
+    actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, STEPS))
+
+    def run(key, contexts, actions):
+        ours = jax.vmap(env.init, in_axes=(None, 0))(key, contexts)
+        theirs = stock.reset(key)
+        transition = jax.vmap(env.transition, in_axes=(None, 0, None, 0))
+
+        def body(carry, action):
+            ours, theirs = carry
+            ours, reward, terminated = transition(key, ours, action, contexts)
+            theirs = stock.step(theirs, action)
+            return (ours, theirs), (
+                jax.vmap(env.observe)(ours, contexts),
+                reward,
+                terminated,
+                theirs.obs,
+                theirs.reward,
+                theirs.done > 0.5,
+            )
+
+        first = (jax.vmap(env.observe)(ours, contexts), theirs.obs)
+        _, trajectory = jax.lax.scan(body, (ours, theirs), actions)
+        return first, trajectory
+
+    (first_ours, first_theirs), trajectory = jax.jit(run)(key, contexts, actions)
+    obs, reward, terminated, their_obs, their_reward, their_done = map(np.asarray, trajectory)
+    ours = {
+        "obs": np.concatenate([np.asarray(first_ours)[None], obs]),
+        "reward": reward,
+        "terminated": terminated,
+    }
+    theirs = {
+        "obs": np.concatenate([np.asarray(first_theirs)[None], their_obs]),
+        "reward": their_reward,
+        "terminated": their_done,
+    }
+    return rows, ours, theirs
+
+
+def copy_trajectory(ours, index):
+    return {k: v[:, index] for k, v in ours.items()}
+
+
+def assert_matches_brax(ours, theirs, tolerance=1e-4):
+    """Copy 0 (the default context) is brax's rollout, to float32 rounding: the system's values are
+    computed at run time here and folded as constants in brax's program, so sums can round apart."""
+    default = copy_trajectory(ours, 0)
+    window = {"obs": slice(0, PARITY_STEPS + 1), "reward": slice(0, PARITY_STEPS)}
+    for key, steps in window.items():
+        np.testing.assert_allclose(
+            default[key][steps], theirs[key][steps], rtol=tolerance, atol=tolerance, err_msg=key
+        )
+    np.testing.assert_array_equal(
+        default["terminated"][:PARITY_STEPS], theirs["terminated"][:PARITY_STEPS]
+    )
+
+
+def differs(ours, a, b) -> bool:
+    return any(not np.array_equal(v[:, a], v[:, b], equal_nan=True) for v in ours.values())
+
+
+def assert_finite_while_running(ours):
+    """Every copy stays finite until its episode ends (the rollout steps on past an end, where a
+    fallen humanoid under random actions may diverge; a real episode restarts there)."""
+    ended = np.cumsum(ours["terminated"], axis=0) > 0  # [t]: the episode ended at step t or before
+    stepping = np.concatenate(
+        [np.ones_like(ended[:1]), ~ended[:-1]]
+    )  # [t]: step t is taken mid-episode
+    after = np.concatenate([np.ones_like(ended[:1]), stepping])  # the first obs, then each step's
+    assert np.all(np.isfinite(ours["reward"][stepping])), "non-finite reward mid-episode"
+    assert np.all(np.isfinite(ours["obs"][after])), "non-finite observation mid-episode"
+
+
+def assert_every_feature_acts(rows, ours):
+    silent = [label for i, (label, _) in enumerate(rows) if i > 0 and not differs(ours, 0, i)]
+    assert not silent, f"features that left the trajectory unchanged: {silent}"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_default_context_matches_brax_and_every_feature_acts(name):
+    rows, ours, theirs = _rollouts(name)
+    assert_matches_brax(ours, theirs)
+    assert_finite_while_running(ours)
+    assert_every_feature_acts(rows, ours)
+
+
+def test_carl_failure_cannot_happen_gravity_and_torso_mass_act_in_one_batch():
+    """CARL's Brax contexts gave identical trajectories for gravity 9.8 vs 1 and torso mass ×10."""
+    rows, ours, _ = _rollouts("Ant")
+    index = {label: i for i, (label, _) in enumerate(rows)}
+    assert differs(ours, index["gravity 9.8"], index["gravity 1"])
+    assert differs(ours, index["default"], index["torso mass x10"])
+    # Lower gravity: the ant falls more slowly (z of the torso is the first observation).
+    low, normal = ours["obs"][:, index["gravity 1"], 0], ours["obs"][:, index["gravity 9.8"], 0]
+    assert low[-1] > normal[-1]
+
+
+def test_spring_pipeline_matches_brax_and_models_elasticity_and_angular_damping():
+    rows, ours, theirs = _rollouts("HalfCheetah", backend="spring")
+    assert {"elasticity", "ang_damping"} <= {label for label, _ in rows}
+    assert_matches_brax(ours, theirs, tolerance=2e-2)  # spring's contacts amplify rounding most
+    assert_every_feature_acts(rows, ours)
+
+
+def test_goal_variant_rewards_progress_toward_the_target_and_ends_there():
+    rows, ours, theirs = _rollouts("Hopper", goal=True)
+    assert {"target_distance", "target_direction", "target_radius"} <= {label for label, _ in rows}
+    assert_every_feature_acts(rows, ours)
+    index = {label: i for i, (label, _) in enumerate(rows)}
+    # The physics is brax's; the reward is the progress toward the target, not brax's own reward.
+    np.testing.assert_allclose(
+        ours["obs"][:PARITY_STEPS, 0], theirs["obs"][:PARITY_STEPS], atol=1e-4
+    )
+    assert not np.allclose(ours["reward"][:, 0], theirs["reward"])
+    # A radius wider than the target's distance: reached at the first step, the episode ends.
+    assert ours["terminated"][0, index["target_radius"]]
+    # Far from the target, the episode ends only when brax's hopper falls.
+    np.testing.assert_array_equal(ours["terminated"][:, index["default"]], theirs["terminated"])
+
+
+def test_public_checker_passes_with_the_medium_model():
+    """The full checker (no recompilation, same key same trajectory, truncation, every declared effect)
+    on InvertedPendulum with MuJoCo's medium on (``fluid=True``), so ``viscosity`` must act too."""
+    env = family.InvertedPendulum(max_steps=4, fluid=True)
+    assert "viscosity" in env.context_space.names
+    check_env(env, num_contexts=4, steps=9)
+
+
+def test_time_limit_truncates_through_the_gymnasium_face():
+    env = gymnasium.make(
+        "contextrl/BraxInvertedPendulum-v0",
+        contexts=[{"mass_pole": 2.0}, {"mass_pole": 8.0}],
+        max_steps=3,
+        render_mode="rgb_array",
+    )
+    gymnasium.utils.env_checker.check_env(env.unwrapped, skip_render_check=True)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and info["context"]["mass_pole"] == 2.0
+    ends = []
+    for _ in range(3):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(1, np.float32))
+        ends.append((terminated, truncated))
+    assert ends == [(False, False), (False, False), (False, True)]
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.std() > 0
+    env.close()
+
+
+def test_registered_with_carl_aliases_and_validated():
+    assert crl.registered("brax") == sorted(f"Brax{n}" for n in NAMES)
+    assert crl.spec("CARLBraxAnt").id == "BraxAnt"
+    env = crl.make("CARLBraxPusher")
+    assert env.default_context().gravity == 0.0  # the stock pusher has no gravity
+    with pytest.raises(ContextError, match=r"mass_torso.*bounds"):
+        crl.make("BraxAnt").context(mass_torso=100.0)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        family.Ant(backend="warp")
+    with pytest.raises(ValueError, match="no goal variant"):
+        family.Reacher(goal=True)
+    assert "elasticity" not in env.context_space.names  # MJX does not model restitution
+    assert "viscosity" not in family.Ant().context_space.names
+    assert "viscosity" in family.Ant(fluid=True).context_space.names
+    with pytest.raises(ValueError, match="fluid=True needs the mjx backend"):
+        family.Ant(backend="generalized", fluid=True)
+
+
+def test_context_types_are_shared_per_configuration_and_defaults_are_the_stock_model():
+    assert family.Ant().context_type is family.Ant(max_steps=5).context_type
+    assert family.Ant(goal=True).context_type is not family.Ant().context_type
+    for cls in family.ENVIRONMENTS:
+        env = cls()
+        stock = env.stock_system
+        built = env.system(env.default_context())
+        for path in ("body_mass", "body_inertia", "opt.gravity", "geom_friction", "actuator_gear"):
+            get = functools.partial(functools.reduce, getattr, path.split("."))
+            np.testing.assert_array_equal(np.asarray(get(built)), np.asarray(get(stock)))
+
+
+def test_dataclass_replace_keeps_the_loaded_model():
+    env = family.Hopper()
+    shorter = dataclasses.replace(env, max_steps=10)
+    assert shorter.stock_system is env.stock_system and shorter.max_steps == 10
+    assert jnp.shape(shorter.action_space.low) == (3,)
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return family.InvertedPendulum(max_steps=200)
+
+
+def assert_learned(curve, first: int, last: int, factor: float, floor: float):
+    """Every seed: the last updates' mean episode return is ``factor`` × the first ones' and above
+    ``floor`` (a random policy keeps the pole up for about 5 steps)."""
+    curve = np.asarray(curve)
+    early = np.nanmean(curve[:, :first], axis=1)
+    late = np.nanmean(curve[:, -last:], axis=1)
+    assert np.all(early < 15), curve
+    assert np.all(late > factor * early) and np.all(late > floor), curve
+
+
+def test_ppo_learns_inverted_pendulum_for_every_seed(pendulum):
+    """Budget: 8,192 steps (8 copies × 64 steps × 16 updates), 2 seeds in one vmapped call."""
+    config = ppo.PPOConfig(
+        total_timesteps=8192, num_envs=8, num_steps=64, learning_rate=3e-3, hidden_sizes=(32, 32)
+    )
+    train = ppo.make_train(config, pendulum, pendulum.default_context())
+    result = jax.jit(jax.vmap(train))(jax.random.split(jax.random.key(0), 2))
+    assert_learned(result.metrics["episode_return"], first=2, last=4, factor=4, floor=30)
+
+
+def test_sac_learns_inverted_pendulum_for_every_seed(pendulum):
+    """Budget: 3,000 steps (2 copies, 500 random warm-up transitions, then an update per step), 2 seeds
+    in one vmapped call."""
+    config = sac.SACConfig(
+        total_timesteps=3000,
+        num_envs=2,
+        hidden_sizes=(64, 64),
+        learning_starts=500,
+        policy_frequency=1,
+        batch_size=128,
+        log_every=500,
+    )
+    train = sac.make_train(config, pendulum, pendulum.default_context())
+    result = jax.jit(jax.vmap(train))(jax.random.split(jax.random.key(0), 2))
+    assert_learned(result.metrics["episode_return"], first=1, last=1, factor=3, floor=30)
