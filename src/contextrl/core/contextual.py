@@ -66,7 +66,7 @@ class ContextualEnv:
         episode = jnp.zeros((), jnp.int32)
         env_key, context, context_id = self._choose(key, episode)
         env_state, timestep = self.env.reset(env_key, context)
-        info = {"context_id": context_id, "next_context_id": context_id}
+        info = {**timestep.info, "context_id": context_id, "next_context_id": context_id}
         return ContextualState(env_state, context, context_id, episode), dataclasses.replace(
             timestep, info=info
         )
@@ -85,7 +85,11 @@ class ContextualEnv:
             jnp.where(done, next_id, state.context_id),
             jnp.where(done, next_episode, state.episode),
         )
-        info = {"context_id": state.context_id, "next_context_id": new_state.context_id}
+        info = {
+            **timestep.info,
+            "context_id": state.context_id,
+            "next_context_id": new_state.context_id,
+        }
         return new_state, dataclasses.replace(timestep, info=info)
 
 

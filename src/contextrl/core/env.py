@@ -95,6 +95,10 @@ class Env:
         """The original environment's observation of ``state``."""
         raise NotImplementedError
 
+    def step_info(self, state, context) -> dict:
+        """Facts about ``state`` for ``TimeStep.info`` (after a step: the state before any reset)."""
+        return {}
+
     @property
     def action_space(self) -> Discrete | Box:
         raise NotImplementedError
@@ -153,7 +157,10 @@ class Env:
         obs = self._observation(physics, context, obs_key)
         zero = jnp.zeros((), jnp.float32)
         false = jnp.zeros((), bool)
-        return EnvState(physics, jnp.zeros((), jnp.int32)), TimeStep(obs, zero, false, false, obs)
+        info = self.step_info(physics, context)
+        return EnvState(physics, jnp.zeros((), jnp.int32)), TimeStep(
+            obs, zero, false, false, obs, info
+        )
 
     def step(self, key, state: EnvState, action, context) -> tuple[EnvState, TimeStep]:
         """One step; if the episode ends, the same call resets it under the same context."""
@@ -190,6 +197,7 @@ class Env:
             jnp.asarray(terminated, bool),
             truncated,
             final_obs,
+            self.step_info(physics, context),
         )
 
     def check_context(self, context) -> None:

@@ -1,0 +1,641 @@
+"""A contextual platformer in JAX (the paper's Mario): procedural levels generated from the context.
+
+The level is never stored. Every tile is a pure function of the context and its column: the level is cut
+into segments of ``SEGMENT`` columns, and each segment's layout (gap, ground height, pipe, floating
+bricks, enemy) is drawn from an integer hash of (``noise_seed``, ``level_index``, segment). So thousands
+of copies each play their own level at no memory cost, a reset regenerates nothing, and the same
+context gives the same level in every copy and every episode. Enemies patrol their segment back and forth
+as a closed-form function of the episode clock, so the state only records which were stomped.
+
+Every level is playable: the widest gap, the highest step and the tallest pipe are computed from the
+context's own jump physics (gravity, jump speed, run speed, inertia), for a jump from rest after the
+shortest run-up the generator leaves before a gap, landing on the highest step it allows.
+
+Units are tiles and steps. Actions are CARL's ten button combinations; speed (``run``) also throws a
+fireball in the fire form. The reward is the progress to the right in tiles, plus a bonus at the flag
+and minus a penalty for dying; ``info`` says whether the level was completed or the agent died, and how
+far it came.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from contextrl.context.features import ContextBase, context_type, feature
+from contextrl.core.env import Env
+from contextrl.core.spaces import Box, Discrete
+
+# ---- the world ---------------------------------------------------------------------------------------
+ROWS = 16  # tiles high
+SEGMENT = 8  # columns per generated segment
+BASE_HEIGHT = 2  # ground height of the start and of the lowest segments
+MAX_GAP = 4  # widest gap: leaves a run-up of SEGMENT - MAX_GAP columns before the next gap
+RUN_UP = SEGMENT - MAX_GAP
+MAX_RISE = 3  # highest step between neighbouring segments
+MAX_PIPE = 4  # tallest pipe
+FLAT_END = 6  # the last columns before the end are flat ground, the flag stands on them
+FLAG_FROM_END = 3  # the flag pole's column, counted from the level's end
+MAX_WIDTH = 1000
+START_AREA = SEGMENT // 2  # flat columns before the first generated segment
+MAX_SEGMENTS = (MAX_WIDTH + START_AREA) // SEGMENT + 1
+CEILING_ROW = ROWS - 1  # the underground's brick ceiling
+
+HASH_OFFSET = 19  # chosen so that the default level opens with a gap, an enemy and a pipe
+
+# ---- the agent and its physics -----------------------------------------------------------------------
+AGENT_WIDTH = 0.75
+SMALL_HEIGHT = 0.9
+LARGE_HEIGHT = 1.8
+START_X = 1.0
+MAX_SPEED = 0.9  # tiles per step, below one tile so nothing is ever stepped through
+MAX_FALL = 1.0
+DEFAULT_INERTIA = 0.89  # run_speed is the top speed at this inertia
+WALK_FRACTION = 0.5  # walking pushes half as hard as running
+INVULNERABLE_STEPS = 30  # after a hit that only shrinks the agent
+STOMP_BOUNCE = 0.5  # fraction of the jump speed an agent bounces off a stomped enemy
+JUMP_MARGIN = 0.6  # tiles kept between the highest jump and the highest step or pipe
+GAP_MARGIN = 0.25  # tiles kept between the widest clearable gap and the widest generated one
+AIR_STEPS_MARGIN = 1  # whole steps of airtime not counted on
+REACH_STEPS = 64  # steps of running from rest the reach computation follows
+
+# ---- enemies and fireballs ---------------------------------------------------------------------------
+ENEMY_SIZE = 0.9
+ENEMY_SPEED = 0.06
+FIREBALL_SPEED = 0.6
+FIREBALL_SIZE = 0.4
+FIREBALL_STEPS = 24
+
+# ---- rewards -----------------------------------------------------------------------------------------
+FLAG_BONUS = 20.0
+DEATH_PENALTY = 20.0
+
+# ---- tiles -------------------------------------------------------------------------------------------
+EMPTY, GROUND, BRICK, PIPE, LAVA, FLAG = range(6)
+TILE_NAMES = ("empty", "ground", "brick", "pipe", "lava", "flag")
+OBS_CHANNELS = ("solid", "hazard", "enemy", "flag")
+VIEW_BEHIND, VIEW_AHEAD = 3, 8  # columns seen behind and ahead of the agent's column
+VIEW_BELOW, VIEW_ABOVE = 5, 4  # rows seen below and above the agent's row
+VIEW_COLS = VIEW_BEHIND + 1 + VIEW_AHEAD
+VIEW_ROWS = VIEW_BELOW + 1 + VIEW_ABOVE
+AGENT_FEATURES = ("vx", "vy", "x_in_tile", "y_in_tile", "large", "fire", "invulnerable", "on_ground")
+
+# ---- styles: per level_index, the probability of each segment kind and of an enemy per segment -------
+STYLES = ("overworld", "underground", "castle", "sky")
+STYLE_GAP = np.array([0.3, 0.2, 0.4, 0.5], np.float32)
+STYLE_PIPE = np.array([0.2, 0.15, 0.3, 0.05], np.float32)
+STYLE_PLATFORM = np.array([0.2, 0.35, 0.1, 0.3], np.float32)
+STYLE_ENEMY = np.array([0.35, 0.5, 0.3, 0.2], np.float32)
+UNDERGROUND, CASTLE, SKY = 1, 2, 3
+
+# ---- the ten actions of CARL's Mario: (horizontal direction, run, jump, down) -------------------------
+ACTIONS = (
+    ("noop", 0, 0, 0, 0),
+    ("down", 0, 0, 0, 1),
+    ("right", 1, 0, 0, 0),
+    ("right+run", 1, 1, 0, 0),
+    ("right+jump", 1, 0, 1, 0),
+    ("right+run+jump", 1, 1, 1, 0),
+    ("left", -1, 0, 0, 0),
+    ("left+jump", -1, 0, 1, 0),
+    ("left+run+jump", -1, 1, 1, 0),
+    ("jump", 0, 0, 1, 0),
+)
+ACTION_NAMES = tuple(a[0] for a in ACTIONS)
+_ACTION_TABLE = np.array([a[1:] for a in ACTIONS], np.int32)
+
+
+@context_type
+class PlatformerContext(ContextBase):
+    """Context features of the platformer: the level (style, layout, difficulty) and the physics."""
+
+    level_width: int = feature(
+        100,
+        16,
+        MAX_WIDTH,
+        kind="int",
+        unit="tiles",
+        doc="columns from the start to the level's end; the flag stands 3 before it",
+        affects=("dynamics", "observation"),
+    )
+    level_index: int = feature(
+        "overworld",
+        0,
+        0,
+        kind="categorical",
+        choices=STYLES,
+        doc="level style: tile mix and how often gaps, pipes, bricks and enemies appear",
+        affects=("dynamics", "observation"),
+    )
+    noise_seed: int = feature(
+        0,
+        0,
+        1_000_000,
+        kind="int",
+        doc="the level generator's seed: the layout",
+        affects=("dynamics", "observation"),
+        aliases=("noise",),
+    )
+    gap_width: float = feature(
+        0.5,
+        0.0,
+        1.0,
+        doc="widest gap as a fraction of the widest the context's jump can clear (at most 4 tiles)",
+        affects=("dynamics", "observation"),
+    )
+    gap_frequency: float = feature(
+        1.0,
+        0.0,
+        2.0,
+        doc="scales the style's probability that a segment starts with a gap",
+        affects=("dynamics", "observation"),
+    )
+    enemy_density: float = feature(
+        1.0,
+        0.0,
+        2.0,
+        doc="scales the style's probability that a segment holds an enemy",
+        affects=("dynamics", "observation"),
+    )
+    platform_height_variation: float = feature(
+        0.5,
+        0.0,
+        1.0,
+        doc="highest step between segments as a fraction of what the jump can climb (at most 3)",
+        affects=("dynamics", "observation"),
+    )
+    mario_state: int = feature(
+        "small",
+        0,
+        0,
+        kind="categorical",
+        choices=("small", "large", "fire"),
+        doc="the form the agent starts in: large survives one hit, fire also throws fireballs",
+        affects=("start_state",),
+    )
+    mario_inertia: float = feature(
+        DEFAULT_INERTIA,
+        0.5,
+        1.5,
+        doc="fraction of the horizontal speed kept each step (how slowly speed changes)",
+        affects=("dynamics", "observation"),
+    )
+    gravity: float = feature(
+        0.12,
+        0.06,
+        0.2,
+        unit="tiles/step²",
+        doc="downward acceleration",
+        affects=("dynamics", "observation"),
+    )
+    jump_speed: float = feature(
+        1.0,
+        0.8,
+        1.4,
+        unit="tiles/step",
+        doc="upward speed a jump starts with",
+        affects=("dynamics", "observation"),
+    )
+    run_speed: float = feature(
+        0.5,
+        0.2,
+        0.8,
+        unit="tiles/step",
+        doc="top running speed at the default inertia (walking pushes half as hard)",
+        affects=("dynamics", "observation"),
+    )
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class PlatformerState:
+    """The agent (feet at ``y``, left side at ``x``), its form, one fireball and the stomped enemies."""
+
+    x: jax.Array
+    y: jax.Array
+    vx: jax.Array
+    vy: jax.Array
+    on_ground: jax.Array
+    facing: jax.Array  # +1 right, -1 left
+    form: jax.Array  # 0 small, 1 large, 2 fire
+    invulnerable: jax.Array  # steps left
+    clock: jax.Array  # steps since the episode started: enemies patrol by it
+    defeated: jax.Array  # (MAX_SEGMENTS,) bool: the segment's enemy was stomped or burnt
+    fireball: jax.Array  # (x, y, direction) of the fireball
+    fireball_steps: jax.Array  # steps the fireball still flies (0: none)
+    completed: jax.Array
+    died: jax.Array
+
+
+# ---- the level ---------------------------------------------------------------------------------------
+def _uniform(seed, style, segment, salt: int):
+    """A uniform number in [0, 1) from an integer hash of (seed, style, segment, salt)."""
+    x = (
+        jnp.asarray(seed).astype(jnp.uint32) * jnp.uint32(0x9E3779B1)
+        + jnp.asarray(style).astype(jnp.uint32) * jnp.uint32(0x632BE5AB)
+        + jnp.asarray(segment).astype(jnp.uint32) * jnp.uint32(0x85EBCA77)
+        + jnp.uint32(salt) * jnp.uint32(0xC2B2AE3D)
+        + jnp.uint32(HASH_OFFSET)
+    )
+    x = (x ^ (x >> 16)) * jnp.uint32(0x7FEB352D)
+    x = (x ^ (x >> 15)) * jnp.uint32(0x846CA68B)
+    x = x ^ (x >> 16)
+    return (x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))
+
+
+def jump_reach(context) -> dict[str, jax.Array]:
+    """What the context's physics can clear: highest climb, widest gap (tiles), and the headroom used.
+
+    The agent jumps from rest after a run-up of ``RUN_UP`` tiles (minus its width and a margin): its
+    speed follows the step's update ``vx ← inertia·vx + push`` on the ground and in the air alike. The airtime to come down onto a step of the highest rise follows the step's update
+    ``vy ← vy − g, y ← y + vy`` exactly (``y_n = n·J − g·n(n+1)/2``), cut by the underground's ceiling.
+    """
+    g, jump = context.gravity, context.jump_speed
+    push = context.run_speed * (1.0 - DEFAULT_INERTIA)
+    inertia = context.mario_inertia
+    steps = jnp.arange(1, REACH_STEPS + 1, dtype=jnp.float32)
+    powers = jnp.cumprod(jnp.full((REACH_STEPS,), inertia))
+    near_one = jnp.abs(1.0 - inertia) < 1e-4
+    safe = jnp.where(near_one, 0.5, 1.0 - inertia)
+    speeds = jnp.where(near_one, push * steps, push * (1.0 - powers) / safe)
+    travelled = jnp.cumsum(jnp.minimum(speeds, MAX_SPEED))
+    room = RUN_UP - AGENT_WIDTH - 0.5
+    take_off = jnp.sum(travelled <= room) - 1  # the last step still on the run-up (-1: none)
+    before = jnp.where(take_off >= 0, travelled[jnp.maximum(take_off, 0)], 0.0)
+
+    launch = jump - g / 2  # the discrete arc is the continuous one launched at J − g/2
+    apex = launch**2 / (2 * g)
+    underground = context.level_index == UNDERGROUND
+    lowest_ceiling = CEILING_ROW - (BASE_HEIGHT + MAX_RISE) - LARGE_HEIGHT
+    reach = jnp.where(underground, jnp.minimum(apex, lowest_ceiling), apex)
+    climb = jnp.floor(reach - JUMP_MARGIN)
+    rise = jnp.clip(jnp.floor(context.platform_height_variation * climb), 0, MAX_RISE)
+
+    # Time above the landing step: rising (to the apex, or to the ceiling where it cuts the arc), then
+    # falling from there; a fall is never faster than free fall, so the speed cap only adds time.
+    ceiling_cut = underground & (apex > lowest_ceiling)
+    top = jnp.where(ceiling_cut, lowest_ceiling, apex)
+    rising = jnp.where(
+        ceiling_cut,
+        (launch - jnp.sqrt(jnp.maximum(launch**2 - 2 * g * top, 0.0))) / g,
+        launch / g,
+    )
+    falling = jnp.sqrt(2 * jnp.maximum(top - rise, 0.0) / g)
+    airtime = jnp.floor(rising + falling) - AIR_STEPS_MARGIN
+    # In the air the agent keeps accelerating as on the ground (holding right).
+    landing = jnp.clip(take_off + airtime.astype(jnp.int32), 0, REACH_STEPS - 1)
+    clearable = travelled[landing] - before - AGENT_WIDTH - GAP_MARGIN
+    widest_gap = jnp.clip(jnp.floor(context.gap_width * clearable), 0, MAX_GAP)
+    tallest_pipe = jnp.clip(climb, 0, MAX_PIPE)
+    return {"rise": rise, "gap": widest_gap, "pipe": tallest_pipe}
+
+
+def segment_of(column):
+    """The segment a column (int array) belongs to; segment 0 is the flat start area."""
+    return jnp.floor_divide(column + START_AREA, SEGMENT)
+
+
+def segments(context, reach, segment):
+    """The layout of segments (an int array): gap width, ground height, pipe, bricks and enemy."""
+    seed, style = context.noise_seed, context.level_index
+
+    def u(salt):
+        return _uniform(seed, style, segment, salt)
+
+    inside = (segment >= 1) & (segment < MAX_SEGMENTS)
+    p_gap = jnp.clip(jnp.asarray(STYLE_GAP)[style] * context.gap_frequency, 0.0, 0.9)
+    p_pipe = jnp.asarray(STYLE_PIPE)[style]
+    p_platform = jnp.asarray(STYLE_PLATFORM)[style]
+    p_enemy = jnp.clip(jnp.asarray(STYLE_ENEMY)[style] * context.enemy_density, 0.0, 1.0)
+    kind = u(0)
+    gap = inside & (kind < p_gap) & (reach["gap"] >= 1)
+    pipe = inside & ~gap & (kind >= p_gap) & (kind < p_gap + p_pipe) & (reach["pipe"] >= 1)
+    bricks = inside & ~gap & ~pipe & (kind >= p_gap + p_pipe) & (kind < p_gap + p_pipe + p_platform)
+    gap_width = jnp.where(gap, 1 + jnp.floor(u(1) * reach["gap"]), 0).astype(jnp.int32)
+    height = BASE_HEIGHT + jnp.where(inside, jnp.floor(u(2) * (reach["rise"] + 1)), 0)
+    pipe_height = jnp.where(pipe, 1 + jnp.floor(u(3) * reach["pipe"]), 0).astype(jnp.int32)
+    pipe_at = 1 + (u(4) < 0.5).astype(jnp.int32)
+    brick_row = height.astype(jnp.int32) + 3 + (u(7) < 0.5).astype(jnp.int32)
+    last_full = segment_of(context.level_width - FLAT_END - SEGMENT)  # wholly before the flat end
+    enemy = inside & (segment <= last_full) & (u(5) < p_enemy)
+    start = segment * SEGMENT - START_AREA
+    patrol_from = start + jnp.where(gap, gap_width, jnp.where(pipe, pipe_at + 2, 0))
+    return {
+        "gap": gap_width,
+        "height": height.astype(jnp.int32),
+        "pipe_height": pipe_height,
+        "pipe_at": pipe_at,
+        "bricks": bricks,
+        "brick_row": brick_row,
+        "enemy": enemy,
+        "patrol_from": patrol_from.astype(jnp.float32),
+        "patrol_span": (start + SEGMENT - ENEMY_SIZE - patrol_from).astype(jnp.float32),
+        "phase": u(6),
+    }
+
+
+def enemy_x(layout, clock):
+    """Where each segment's enemy is at ``clock``: walking back and forth over its patrol span."""
+    span = jnp.maximum(layout["patrol_span"], 1e-3)
+    walked = jnp.mod(layout["phase"] * 2 * span + ENEMY_SPEED * clock, 2 * span)
+    return layout["patrol_from"] + jnp.where(walked < span, walked, 2 * span - walked)
+
+
+def tiles(context, reach, columns, rows):
+    """Tile kinds at (columns, rows) (broadcast int arrays): the level as a pure function."""
+    segment = segment_of(columns)
+    layout = segments(context, reach, segment)
+    offset = columns - (segment * SEGMENT - START_AREA)
+    width = context.level_width
+    flat = columns >= width - FLAT_END
+    style = context.level_index
+    in_gap = (offset < layout["gap"]) & ~flat
+    height = layout["height"]
+    bottom = jnp.where(style == SKY, height - 1, 0)
+    ground = ~in_gap & (rows < height) & (rows >= bottom)
+    pipe = (
+        (layout["pipe_height"] > 0)
+        & ~flat
+        & (offset >= layout["pipe_at"])
+        & (offset < layout["pipe_at"] + 2)
+        & (rows >= height)
+        & (rows < height + layout["pipe_height"])
+    )
+    bricks = (
+        layout["bricks"] & ~flat & (offset >= 2) & (offset < 6) & (rows == layout["brick_row"])
+    )
+    ceiling = (style == UNDERGROUND) & (rows == CEILING_ROW)
+    lava = (style == CASTLE) & in_gap & (rows == 0)
+    flag = (columns == width - FLAG_FROM_END) & (rows >= height) & (rows < height + 9)
+    wall = (columns >= width) | (columns < 0)
+    kind = jnp.where(flag, FLAG, EMPTY)
+    kind = jnp.where(lava, LAVA, kind)
+    kind = jnp.where(bricks | ceiling, BRICK, kind)
+    kind = jnp.where(pipe, PIPE, kind)
+    kind = jnp.where(ground | wall, GROUND, kind)
+    return jnp.where((rows < 0) | (rows >= ROWS), jnp.where(wall, GROUND, EMPTY), kind)
+
+
+def _solid(kind):
+    return (kind == GROUND) | (kind == BRICK) | (kind == PIPE)
+
+
+def level_map(context, width: int | None = None) -> np.ndarray:
+    """The whole level as a (ROWS, width) array of tile kinds, row 0 at the bottom (for tests, pictures)."""
+    width = int(context.level_width) if width is None else width
+    reach = jump_reach(context)
+    columns = jnp.arange(width)[None, :]
+    rows = jnp.arange(ROWS)[:, None]
+    return np.asarray(tiles(context, reach, columns, rows))
+
+
+# ---- the environment ---------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Platformer(Env):
+    """Run right to the flag over gaps, steps and pipes, stomping or avoiding enemies (CARL's Mario).
+
+    ``obs="tiles"`` (default): the tiles around the agent, one channel per kind (solid, hazard, enemy,
+    flag) in a window of 12 columns × 10 rows, then the agent's speed, position in its tile and form.
+    ``obs="pixels"``: an 84×84 RGB picture around the agent, flattened, values in [0, 1].
+    """
+
+    obs: str = "tiles"
+
+    context_type = PlatformerContext
+    default_max_steps = 2000
+    observation_kinds: ClassVar[tuple[str, ...]] = ("tiles", "pixels")
+
+    def __post_init__(self):
+        if self.obs not in self.observation_kinds:
+            raise ValueError(f"obs must be one of {list(self.observation_kinds)}, got {self.obs!r}")
+        super().__post_init__()
+
+    @property
+    def action_space(self) -> Discrete:
+        return Discrete(len(ACTIONS))
+
+    @property
+    def base_observation_space(self) -> Box:
+        if self.obs == "pixels":
+            from contextrl.envs.platformer.sprites import PIXELS
+
+            size = PIXELS * PIXELS * 3
+            return Box(np.zeros(size), np.ones(size))
+        size = VIEW_COLS * VIEW_ROWS * len(OBS_CHANNELS)
+        low = np.concatenate([np.zeros(size), [-1, -1, 0, 0, 0, 0, 0, 0]])
+        return Box(low, np.ones(size + len(AGENT_FEATURES)))
+
+    def init(self, key, context) -> PlatformerState:
+        zero = jnp.zeros((), jnp.float32)
+        false = jnp.zeros((), bool)
+        return PlatformerState(
+            x=jnp.float32(START_X),
+            y=jnp.float32(BASE_HEIGHT),
+            vx=zero,
+            vy=zero,
+            on_ground=jnp.ones((), bool),
+            facing=jnp.ones((), jnp.int32),
+            form=jnp.asarray(context.mario_state, jnp.int32),
+            invulnerable=jnp.zeros((), jnp.int32),
+            clock=jnp.zeros((), jnp.int32),
+            defeated=jnp.zeros((MAX_SEGMENTS,), bool),
+            fireball=jnp.zeros((3,), jnp.float32),
+            fireball_steps=jnp.zeros((), jnp.int32),
+            completed=false,
+            died=false,
+        )
+
+    def transition(self, key, state: PlatformerState, action, context):
+        return step_physics(state, action, context)
+
+    def observe(self, state: PlatformerState, context) -> jax.Array:
+        if self.obs == "pixels":
+            from contextrl.envs.platformer.sprites import PIXELS, TILE_PIXELS, draw_view
+
+            view = PIXELS // TILE_PIXELS
+            frame = draw_view(state, context, view, view, TILE_PIXELS)
+            return frame.reshape(-1).astype(jnp.float32) / 255.0
+        return tile_observation(state, context)
+
+    def step_info(self, state: PlatformerState, context) -> dict:
+        """Whether the level was completed or the agent died, and how far it came (tiles and fraction)."""
+        distance = state.x - START_X
+        flag = context.level_width - FLAG_FROM_END - START_X
+        return {
+            "completed": state.completed,
+            "died": state.died,
+            "distance": distance,
+            "progress": jnp.clip(distance / flag, 0.0, 1.0),
+        }
+
+
+def agent_height(form):
+    return jnp.where(form > 0, LARGE_HEIGHT, SMALL_HEIGHT)
+
+
+def _box_hits_solid(context, reach, x, y, height) -> jax.Array:
+    """Whether the box [x, x + AGENT_WIDTH) × [y, y + height) overlaps a solid tile (≤ 2 × 3 tiles)."""
+    columns = jnp.floor(x).astype(jnp.int32) + jnp.array([0, 1])
+    rows = jnp.floor(y).astype(jnp.int32) + jnp.array([0, 1, 2])
+    inside_x = columns.astype(jnp.float32) < x + AGENT_WIDTH
+    inside_y = rows.astype(jnp.float32) < y + height
+    kinds = tiles(context, reach, columns[None, :], rows[:, None])
+    return jnp.any(_solid(kinds) & inside_x[None, :] & inside_y[:, None])
+
+
+def step_physics(state: PlatformerState, action, context):
+    """One step: input, gravity, moves with tile collisions, enemies, fireball, flag and death."""
+    reach = jump_reach(context)
+    direction, run, jump, down = (jnp.asarray(_ACTION_TABLE)[action, i] for i in range(4))
+    ducking = (down == 1) & state.on_ground
+    height = jnp.where(ducking, SMALL_HEIGHT, agent_height(state.form))
+
+    # Horizontal: keep a fraction of the speed (inertia), push towards the pressed direction.
+    push = context.run_speed * (1.0 - DEFAULT_INERTIA) * jnp.where(run == 1, 1.0, WALK_FRACTION)
+    push = jnp.where(ducking, 0.0, push * direction)
+    vx = jnp.clip(context.mario_inertia * state.vx + push, -MAX_SPEED, MAX_SPEED)
+    facing = jnp.where(direction != 0, direction, state.facing)
+
+    # Vertical: a jump from the ground, then gravity (falls capped).
+    vy = jnp.where((jump == 1) & state.on_ground, context.jump_speed, state.vy)
+    vy = jnp.maximum(vy - context.gravity, -MAX_FALL)
+
+    # Move along x, stop at a wall; then along y, land or bump the head.
+    x = state.x + vx
+    blocked_x = _box_hits_solid(context, reach, x, state.y, height)
+    wall_x = jnp.where(vx > 0, jnp.floor(x + AGENT_WIDTH) - AGENT_WIDTH - 1e-4, jnp.floor(x) + 1)
+    x = jnp.where(blocked_x, wall_x, x)
+    vx = jnp.where(blocked_x, 0.0, vx)
+    y = state.y + vy
+    blocked_y = _box_hits_solid(context, reach, x, y, height)
+    landed = blocked_y & (vy < 0)
+    y = jnp.where(blocked_y, jnp.where(vy < 0, jnp.floor(y) + 1, jnp.floor(y + height) - height), y)
+    vy = jnp.where(blocked_y, 0.0, vy)
+
+    # Enemies of the segments the agent overlaps: stomp from above, otherwise get hurt.
+    clock = state.clock + 1
+    segment = segment_of(jnp.floor(x).astype(jnp.int32)) + jnp.array([0, 1])
+    layout = segments(context, reach, segment)
+    safe_segment = jnp.clip(segment, 0, MAX_SEGMENTS - 1)
+    alive = layout["enemy"] & ~state.defeated[safe_segment]
+    ex = enemy_x(layout, clock.astype(jnp.float32))
+    ey = layout["height"].astype(jnp.float32)
+    touch = (
+        alive
+        & (x < ex + ENEMY_SIZE)
+        & (x + AGENT_WIDTH > ex)
+        & (y < ey + ENEMY_SIZE)
+        & (y + height > ey)
+    )
+    stomp = touch & (vy < 0) & (state.y >= ey + ENEMY_SIZE * 0.5)
+    hurt = jnp.any(touch & ~stomp) & (state.invulnerable == 0)
+    vy = jnp.where(jnp.any(stomp), STOMP_BOUNCE * context.jump_speed, vy)
+    defeated = state.defeated.at[safe_segment].max(stomp)
+
+    # The fire form throws a fireball with the run button; it flies straight and burns one enemy.
+    throw = (state.form == 2) & (run == 1) & (state.fireball_steps == 0)
+    fireball = jnp.where(
+        throw,
+        jnp.stack([x + AGENT_WIDTH / 2, y + height * 0.5, facing.astype(jnp.float32)]),
+        state.fireball,
+    )
+    fireball_steps = jnp.where(throw, FIREBALL_STEPS, state.fireball_steps)
+    flying = fireball_steps > 0
+    fx = fireball[0] + fireball[2] * FIREBALL_SPEED * flying
+    fy = fireball[1]
+    f_segment = segment_of(jnp.floor(fx).astype(jnp.int32))
+    f_layout = segments(context, reach, f_segment)
+    f_safe = jnp.clip(f_segment, 0, MAX_SEGMENTS - 1)
+    f_ex = enemy_x(f_layout, clock.astype(jnp.float32))
+    f_ey = f_layout["height"].astype(jnp.float32)
+    burn = (
+        flying
+        & f_layout["enemy"]
+        & ~defeated[f_safe]
+        & (jnp.abs(fx - (f_ex + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+        & (jnp.abs(fy - (f_ey + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+    )
+    defeated = defeated.at[f_safe].max(burn)
+    hits_wall = _solid(
+        tiles(context, reach, jnp.floor(fx).astype(jnp.int32), jnp.floor(fy).astype(jnp.int32))
+    )
+    fireball_steps = jnp.where(flying & ~burn & ~hits_wall, fireball_steps - 1, 0)
+    fireball = jnp.stack([fx, fy, fireball[2]])
+
+    # A hit shrinks a large or fire agent (fire → large → small) and kills a small one.
+    form = jnp.where(hurt, state.form - 1, state.form)
+    invulnerable = jnp.where(hurt, INVULNERABLE_STEPS, jnp.maximum(state.invulnerable - 1, 0))
+    lava = (context.level_index == CASTLE) & (y < 1.0)
+    fell = y + agent_height(form) < 0
+    died = (hurt & (state.form == 0)) | fell | (lava & jnp.any(_in_gap(context, reach, x)))
+    flag = (context.level_width - FLAG_FROM_END).astype(jnp.float32) + 0.5
+    completed = (x + AGENT_WIDTH >= flag) & ~died
+
+    next_state = PlatformerState(
+        x=x,
+        y=y,
+        vx=vx,
+        vy=vy,
+        on_ground=landed,
+        facing=facing,
+        form=jnp.maximum(form, 0),
+        invulnerable=invulnerable,
+        clock=clock,
+        defeated=defeated,
+        fireball=fireball,
+        fireball_steps=fireball_steps,
+        completed=completed,
+        died=died,
+    )
+    reward = (
+        (x - state.x) + FLAG_BONUS * completed.astype(jnp.float32) - DEATH_PENALTY * died
+    ).astype(jnp.float32)
+    return next_state, reward, completed | died
+
+
+def _in_gap(context, reach, x):
+    """Whether each column under the agent is a gap (no ground)."""
+    columns = jnp.floor(x).astype(jnp.int32) + jnp.array([0, 1])
+    covered = columns.astype(jnp.float32) < x + AGENT_WIDTH
+    kinds = tiles(context, reach, columns, jnp.zeros_like(columns))
+    return (kinds == LAVA) & covered
+
+
+def tile_observation(state: PlatformerState, context) -> jax.Array:
+    """The window of tiles around the agent (solid, hazard, enemy, flag channels) and its own state."""
+    reach = jump_reach(context)
+    column = jnp.floor(state.x + AGENT_WIDTH / 2).astype(jnp.int32)
+    row = jnp.floor(state.y).astype(jnp.int32)
+    columns = column - VIEW_BEHIND + jnp.arange(VIEW_COLS)
+    rows = row - VIEW_BELOW + jnp.arange(VIEW_ROWS)
+    kinds = tiles(context, reach, columns[None, :], rows[:, None])
+    first = segment_of(columns[0])
+    segment = first + jnp.arange(3)  # a window of 12 columns spans at most 3 segments
+    layout = segments(context, reach, segment)
+    alive = layout["enemy"] & ~state.defeated[jnp.clip(segment, 0, MAX_SEGMENTS - 1)]
+    enemy_column = jnp.floor(enemy_x(layout, state.clock.astype(jnp.float32)) + ENEMY_SIZE / 2)
+    enemy_row = layout["height"]
+    enemy = jnp.any(
+        alive[:, None, None]
+        & (enemy_column.astype(jnp.int32)[:, None, None] == columns[None, None, :])
+        & (enemy_row[:, None, None] == rows[None, :, None]),
+        axis=0,
+    )
+    grid = jnp.stack([_solid(kinds), kinds == LAVA, enemy, kinds == FLAG], axis=-1)
+    own = jnp.stack(
+        [
+            state.vx / MAX_SPEED,
+            jnp.clip(state.vy / MAX_FALL, -1.0, 1.0),
+            state.x - jnp.floor(state.x),
+            state.y - jnp.floor(state.y),
+            (state.form >= 1).astype(jnp.float32),
+            (state.form == 2).astype(jnp.float32),
+            (state.invulnerable > 0).astype(jnp.float32),
+            state.on_ground.astype(jnp.float32),
+        ]
+    )
+    return jnp.concatenate([grid.reshape(-1).astype(jnp.float32), own])
