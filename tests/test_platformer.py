@@ -1,15 +1,13 @@
 """The platformer: levels from the context, playable by construction, its physics, observations, info."""
 
-import dataclasses
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 import contextrl as crl
-from contextrl.envs.platformer import platformer as pf
 from contextrl.envs.platformer import level_map
+from contextrl.envs.platformer import platformer as pf
 
 RIGHT, RIGHT_RUN, RIGHT_JUMP, RIGHT_RUN_JUMP, NOOP, LEFT = 2, 3, 4, 5, 0, 6
 MACROS = jnp.array([RIGHT_RUN, RIGHT_RUN_JUMP, NOOP, LEFT, RIGHT, RIGHT_JUMP])
@@ -52,8 +50,8 @@ def beam_search(context, rounds: int, beam: int = 48):
         score = jnp.where(ok, children.x, -jnp.inf)
         order = jnp.lexsort((-score, cell))  # by cell, best first within a cell
         first = jnp.concatenate([jnp.array([True]), cell[order][1:] != cell[order][:-1]])
-        unique_score = jnp.full_like(score, -jnp.inf).at[order].set(
-            jnp.where(first, score[order], -jnp.inf)
+        unique_score = (
+            jnp.full_like(score, -jnp.inf).at[order].set(jnp.where(first, score[order], -jnp.inf))
         )
         best = jnp.argsort(-unique_score)[:beam]
         kept = jax.tree_util.tree_map(lambda leaf: leaf[best], children)

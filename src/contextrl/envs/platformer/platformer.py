@@ -54,14 +54,17 @@ LARGE_HEIGHT = 1.8
 START_X = 1.0
 MAX_SPEED = 0.9  # tiles per step, below one tile so nothing is ever stepped through
 MAX_FALL = 1.0
-DEFAULT_INERTIA = 0.89  # run_speed is the top speed at this inertia
-WALK_FRACTION = 0.5  # walking pushes half as hard as running
+DEFAULT_INERTIA = 0.89  # at this inertia the speed keeps 0.89 of itself per step, as in Mario
+WALK_FRACTION = 0.5  # walking aims at half the running speed
 INVULNERABLE_STEPS = 30  # after a hit that only shrinks the agent
 STOMP_BOUNCE = 0.5  # fraction of the jump speed an agent bounces off a stomped enemy
 JUMP_MARGIN = 0.6  # tiles kept between the highest jump and the highest step or pipe
 GAP_MARGIN = 0.25  # tiles kept between the widest clearable gap and the widest generated one
 AIR_STEPS_MARGIN = 1  # whole steps of airtime not counted on
 REACH_STEPS = 64  # steps of running from rest the reach computation follows
+_RUNNING_SUM = np.tril(
+    np.ones((REACH_STEPS, REACH_STEPS), np.float32)
+)  # a cumulative sum as a product
 
 # ---- enemies and fireballs ---------------------------------------------------------------------------
 ENEMY_SIZE = 0.9
@@ -82,7 +85,16 @@ VIEW_BEHIND, VIEW_AHEAD = 3, 8  # columns seen behind and ahead of the agent's c
 VIEW_BELOW, VIEW_ABOVE = 5, 4  # rows seen below and above the agent's row
 VIEW_COLS = VIEW_BEHIND + 1 + VIEW_AHEAD
 VIEW_ROWS = VIEW_BELOW + 1 + VIEW_ABOVE
-AGENT_FEATURES = ("vx", "vy", "x_in_tile", "y_in_tile", "large", "fire", "invulnerable", "on_ground")
+AGENT_FEATURES = (
+    "vx",
+    "vy",
+    "x_in_tile",
+    "y_in_tile",
+    "large",
+    "fire",
+    "invulnerable",
+    "on_ground",
+)
 
 # ---- styles: per level_index, the probability of each segment kind and of an enemy per segment -------
 STYLES = ("overworld", "underground", "castle", "sky")
@@ -181,7 +193,7 @@ class PlatformerContext(ContextBase):
         DEFAULT_INERTIA,
         0.5,
         1.5,
-        doc="fraction of the horizontal speed kept each step (how slowly speed changes)",
+        doc="how slowly the horizontal speed changes: it keeps 1 - 0.11·0.89/inertia of itself a step",
         affects=("dynamics", "observation"),
     )
     gravity: float = feature(
@@ -205,7 +217,7 @@ class PlatformerContext(ContextBase):
         0.2,
         0.8,
         unit="tiles/step",
-        doc="top running speed at the default inertia (walking pushes half as hard)",
+        doc="top running speed (walking reaches half of it)",
         affects=("dynamics", "observation"),
     )
 
@@ -247,22 +259,28 @@ def _uniform(seed, style, segment, salt: int):
     return (x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))
 
 
+def speed_kept(context):
+    """Fraction of the horizontal speed kept each step; the rest moves towards the pressed speed.
+
+    At the default inertia this is Mario's 0.89; a larger inertia changes speed more slowly, a smaller
+    one faster, and the top speed stays ``run_speed`` (CARL's bounds reach 1.5, where Mario's own rule,
+    keeping ``inertia`` of the speed, would let it grow without end).
+    """
+    return 1.0 - (1.0 - DEFAULT_INERTIA) * DEFAULT_INERTIA / context.mario_inertia
+
+
 def jump_reach(context) -> dict[str, jax.Array]:
     """What the context's physics can clear: highest climb, widest gap (tiles), and the headroom used.
 
     The agent jumps from rest after a run-up of ``RUN_UP`` tiles (minus its width and a margin): its
-    speed follows the step's update ``vx ← inertia·vx + push`` on the ground and in the air alike. The airtime to come down onto a step of the highest rise follows the step's update
+    speed follows the step's update ``vx ← keep·vx + (1 − keep)·run_speed`` on the ground and in the air. The airtime to come down onto a step of the highest rise follows the step's update
     ``vy ← vy − g, y ← y + vy`` exactly (``y_n = n·J − g·n(n+1)/2``), cut by the underground's ceiling.
     """
     g, jump = context.gravity, context.jump_speed
-    push = context.run_speed * (1.0 - DEFAULT_INERTIA)
-    inertia = context.mario_inertia
+    keep = speed_kept(context)
     steps = jnp.arange(1, REACH_STEPS + 1, dtype=jnp.float32)
-    powers = jnp.cumprod(jnp.full((REACH_STEPS,), inertia))
-    near_one = jnp.abs(1.0 - inertia) < 1e-4
-    safe = jnp.where(near_one, 0.5, 1.0 - inertia)
-    speeds = jnp.where(near_one, push * steps, push * (1.0 - powers) / safe)
-    travelled = jnp.cumsum(jnp.minimum(speeds, MAX_SPEED))
+    speeds = context.run_speed * (1.0 - keep**steps)
+    travelled = _RUNNING_SUM @ speeds
     room = RUN_UP - AGENT_WIDTH - 0.5
     take_off = jnp.sum(travelled <= room) - 1  # the last step still on the run-up (-1: none)
     before = jnp.where(take_off >= 0, travelled[jnp.maximum(take_off, 0)], 0.0)
@@ -365,9 +383,7 @@ def tiles(context, reach, columns, rows):
         & (rows >= height)
         & (rows < height + layout["pipe_height"])
     )
-    bricks = (
-        layout["bricks"] & ~flat & (offset >= 2) & (offset < 6) & (rows == layout["brick_row"])
-    )
+    bricks = layout["bricks"] & ~flat & (offset >= 2) & (offset < 6) & (rows == layout["brick_row"])
     ceiling = (style == UNDERGROUND) & (rows == CEILING_ROW)
     lava = (style == CASTLE) & in_gap & (rows == 0)
     flag = (columns == width - FLAG_FROM_END) & (rows >= height) & (rows < height + 9)
@@ -477,13 +493,20 @@ def agent_height(form):
     return jnp.where(form > 0, LARGE_HEIGHT, SMALL_HEIGHT)
 
 
-def _box_hits_solid(context, reach, x, y, height) -> jax.Array:
-    """Whether the box [x, x + AGENT_WIDTH) × [y, y + height) overlaps a solid tile (≤ 2 × 3 tiles)."""
-    columns = jnp.floor(x).astype(jnp.int32) + jnp.array([0, 1])
-    rows = jnp.floor(y).astype(jnp.int32) + jnp.array([0, 1, 2])
+def _box_hits_solid(patch, corner, x, y, height) -> jax.Array:
+    """Whether the box [x, x + AGENT_WIDTH) × [y, y + height) overlaps a solid tile of ``patch``.
+
+    ``patch`` holds the tile kinds around the agent, its lowest row and leftmost column at ``corner``.
+    """
+    column, row = jnp.floor(x).astype(jnp.int32), jnp.floor(y).astype(jnp.int32)
+    columns = column + jnp.array([0, 1])
+    rows = row + jnp.array([0, 1, 2])
     inside_x = columns.astype(jnp.float32) < x + AGENT_WIDTH
     inside_y = rows.astype(jnp.float32) < y + height
-    kinds = tiles(context, reach, columns[None, :], rows[:, None])
+    kinds = patch[
+        jnp.clip(rows - corner[1], 0, patch.shape[0] - 1)[:, None],
+        jnp.clip(columns - corner[0], 0, patch.shape[1] - 1)[None, :],
+    ]
     return jnp.any(_solid(kinds) & inside_x[None, :] & inside_y[:, None])
 
 
@@ -494,49 +517,39 @@ def step_physics(state: PlatformerState, action, context):
     ducking = (down == 1) & state.on_ground
     height = jnp.where(ducking, SMALL_HEIGHT, agent_height(state.form))
 
-    # Horizontal: keep a fraction of the speed (inertia), push towards the pressed direction.
-    push = context.run_speed * (1.0 - DEFAULT_INERTIA) * jnp.where(run == 1, 1.0, WALK_FRACTION)
-    push = jnp.where(ducking, 0.0, push * direction)
-    vx = jnp.clip(context.mario_inertia * state.vx + push, -MAX_SPEED, MAX_SPEED)
+    # Horizontal: the speed moves towards the pressed direction's speed (zero without one), as fast as
+    # the inertia lets it.
+    target = context.run_speed * jnp.where(run == 1, 1.0, WALK_FRACTION) * direction
+    target = jnp.where(ducking, 0.0, target)
+    keep = speed_kept(context)
+    vx = jnp.clip(keep * state.vx + (1.0 - keep) * target, -MAX_SPEED, MAX_SPEED)
     facing = jnp.where(direction != 0, direction, state.facing)
 
     # Vertical: a jump from the ground, then gravity (falls capped).
     vy = jnp.where((jump == 1) & state.on_ground, context.jump_speed, state.vy)
     vy = jnp.maximum(vy - context.gravity, -MAX_FALL)
 
-    # Move along x, stop at a wall; then along y, land or bump the head.
+    # Move along x, stop at a wall; then along y, land or bump the head. Moves are under one tile
+    # across and 1.4 up, so the tiles they can touch are all in a patch of 4 × 7 around the agent.
+    corner = jnp.stack([jnp.floor(state.x), jnp.floor(state.y)]).astype(jnp.int32) - jnp.array(
+        [1, 2]
+    )
+    patch = tiles(
+        context, reach, corner[0] + jnp.arange(4)[None, :], corner[1] + jnp.arange(7)[:, None]
+    )
     x = state.x + vx
-    blocked_x = _box_hits_solid(context, reach, x, state.y, height)
+    blocked_x = _box_hits_solid(patch, corner, x, state.y, height)
     wall_x = jnp.where(vx > 0, jnp.floor(x + AGENT_WIDTH) - AGENT_WIDTH - 1e-4, jnp.floor(x) + 1)
     x = jnp.where(blocked_x, wall_x, x)
     vx = jnp.where(blocked_x, 0.0, vx)
     y = state.y + vy
-    blocked_y = _box_hits_solid(context, reach, x, y, height)
+    blocked_y = _box_hits_solid(patch, corner, x, y, height)
     landed = blocked_y & (vy < 0)
     y = jnp.where(blocked_y, jnp.where(vy < 0, jnp.floor(y) + 1, jnp.floor(y + height) - height), y)
     vy = jnp.where(blocked_y, 0.0, vy)
 
-    # Enemies of the segments the agent overlaps: stomp from above, otherwise get hurt.
+    # Enemies of the segments the agent overlaps (two) and the fireball's (one), laid out at once.
     clock = state.clock + 1
-    segment = segment_of(jnp.floor(x).astype(jnp.int32)) + jnp.array([0, 1])
-    layout = segments(context, reach, segment)
-    safe_segment = jnp.clip(segment, 0, MAX_SEGMENTS - 1)
-    alive = layout["enemy"] & ~state.defeated[safe_segment]
-    ex = enemy_x(layout, clock.astype(jnp.float32))
-    ey = layout["height"].astype(jnp.float32)
-    touch = (
-        alive
-        & (x < ex + ENEMY_SIZE)
-        & (x + AGENT_WIDTH > ex)
-        & (y < ey + ENEMY_SIZE)
-        & (y + height > ey)
-    )
-    stomp = touch & (vy < 0) & (state.y >= ey + ENEMY_SIZE * 0.5)
-    hurt = jnp.any(touch & ~stomp) & (state.invulnerable == 0)
-    vy = jnp.where(jnp.any(stomp), STOMP_BOUNCE * context.jump_speed, vy)
-    defeated = state.defeated.at[safe_segment].max(stomp)
-
-    # The fire form throws a fireball with the run button; it flies straight and burns one enemy.
     throw = (state.form == 2) & (run == 1) & (state.fireball_steps == 0)
     fireball = jnp.where(
         throw,
@@ -547,19 +560,36 @@ def step_physics(state: PlatformerState, action, context):
     flying = fireball_steps > 0
     fx = fireball[0] + fireball[2] * FIREBALL_SPEED * flying
     fy = fireball[1]
-    f_segment = segment_of(jnp.floor(fx).astype(jnp.int32))
-    f_layout = segments(context, reach, f_segment)
-    f_safe = jnp.clip(f_segment, 0, MAX_SEGMENTS - 1)
-    f_ex = enemy_x(f_layout, clock.astype(jnp.float32))
-    f_ey = f_layout["height"].astype(jnp.float32)
+    column = jnp.stack([jnp.floor(x), jnp.floor(x), jnp.floor(fx)]).astype(jnp.int32)
+    segment = segment_of(column) + jnp.array([0, 1, 0])
+    layout = segments(context, reach, segment)
+    safe_segment = jnp.clip(segment, 0, MAX_SEGMENTS - 1)
+    alive = layout["enemy"] & ~state.defeated[safe_segment]
+    ex = enemy_x(layout, clock.astype(jnp.float32))
+    ey = layout["height"].astype(jnp.float32)
+
+    # Stomp from above, otherwise get hurt.
+    touch = (
+        alive[:2]
+        & (x < ex[:2] + ENEMY_SIZE)
+        & (x + AGENT_WIDTH > ex[:2])
+        & (y < ey[:2] + ENEMY_SIZE)
+        & (y + height > ey[:2])
+    )
+    stomp = touch & (vy < 0) & (state.y >= ey[:2] + ENEMY_SIZE * 0.5)
+    hurt = jnp.any(touch & ~stomp) & (state.invulnerable == 0)
+    vy = jnp.where(jnp.any(stomp), STOMP_BOUNCE * context.jump_speed, vy)
+    defeated = state.defeated.at[safe_segment[:2]].max(stomp)
+
+    # The fire form throws a fireball with the run button; it flies straight and burns one enemy.
     burn = (
         flying
-        & f_layout["enemy"]
-        & ~defeated[f_safe]
-        & (jnp.abs(fx - (f_ex + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
-        & (jnp.abs(fy - (f_ey + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+        & alive[2]
+        & ~defeated[safe_segment[2]]
+        & (jnp.abs(fx - (ex[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+        & (jnp.abs(fy - (ey[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
     )
-    defeated = defeated.at[f_safe].max(burn)
+    defeated = defeated.at[safe_segment[2]].max(burn)
     hits_wall = _solid(
         tiles(context, reach, jnp.floor(fx).astype(jnp.int32), jnp.floor(fy).astype(jnp.int32))
     )
@@ -571,7 +601,12 @@ def step_physics(state: PlatformerState, action, context):
     invulnerable = jnp.where(hurt, INVULNERABLE_STEPS, jnp.maximum(state.invulnerable - 1, 0))
     lava = (context.level_index == CASTLE) & (y < 1.0)
     fell = y + agent_height(form) < 0
-    died = (hurt & (state.form == 0)) | fell | (lava & jnp.any(_in_gap(context, reach, x)))
+    over_lava = (patch[jnp.clip(-corner[1], 0, 6)] == LAVA) & (corner[1] <= 0)  # row 0 of the patch
+    lava_below = over_lava[
+        jnp.clip(jnp.floor(x).astype(jnp.int32) - corner[0] + jnp.array([0, 1]), 0, 3)
+    ]
+    covered = jnp.floor(x) + jnp.array([0.0, 1.0]) < x + AGENT_WIDTH
+    died = (hurt & (state.form == 0)) | fell | (lava & jnp.any(lava_below & covered))
     flag = (context.level_width - FLAG_FROM_END).astype(jnp.float32) + 0.5
     completed = (x + AGENT_WIDTH >= flag) & ~died
 
@@ -595,14 +630,6 @@ def step_physics(state: PlatformerState, action, context):
         (x - state.x) + FLAG_BONUS * completed.astype(jnp.float32) - DEATH_PENALTY * died
     ).astype(jnp.float32)
     return next_state, reward, completed | died
-
-
-def _in_gap(context, reach, x):
-    """Whether each column under the agent is a gap (no ground)."""
-    columns = jnp.floor(x).astype(jnp.int32) + jnp.array([0, 1])
-    covered = columns.astype(jnp.float32) < x + AGENT_WIDTH
-    kinds = tiles(context, reach, columns, jnp.zeros_like(columns))
-    return (kinds == LAVA) & covered
 
 
 def tile_observation(state: PlatformerState, context) -> jax.Array:

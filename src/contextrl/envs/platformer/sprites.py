@@ -200,7 +200,9 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
     solid_colors = jnp.asarray(TILE_COLORS)[style]  # (4 kinds, 3 entries, RGB)
     colored = solid_colors[jnp.clip(kind - world.GROUND, 0, 3), jnp.maximum(entry, 0)]
     background = jnp.broadcast_to(jnp.asarray(BACKGROUND)[style], colored.shape)
-    image = jnp.where(((kind >= world.GROUND) & (kind <= world.LAVA))[..., None], colored, background)
+    image = jnp.where(
+        ((kind >= world.GROUND) & (kind <= world.LAVA))[..., None], colored, background
+    )
     pole = (kind == world.FLAG) & (entry == 2)
     image = jnp.where(pole[..., None], jnp.asarray(FLAG_COLOR), image)
 
