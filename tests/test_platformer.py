@@ -204,7 +204,7 @@ def test_enemies_are_stomped_from_above_and_hurt_from_the_side(env, step):
         clock=jnp.int32(10),
     )
     stomped, reward, done = step(above, NOOP, ctx)
-    assert bool(stomped.defeated[1]) and float(stomped.vy) > 0 and not bool(done)
+    assert bool(pf.is_defeated(stomped.defeated, 1)) and float(stomped.vy) > 0 and not bool(done)
 
     side = dataclasses.replace(
         start, x=jnp.float32(ex - 0.6), y=jnp.float32(ey), clock=jnp.int32(10)
@@ -215,7 +215,7 @@ def test_enemies_are_stomped_from_above_and_hurt_from_the_side(env, step):
     assert (
         not bool(done) and int(large.form) == 0 and int(large.invulnerable) == pf.INVULNERABLE_STEPS
     )
-    assert not bool(large.defeated[1])
+    assert not bool(pf.is_defeated(large.defeated, 1))
 
 
 def test_the_fire_form_burns_an_enemy_with_a_fireball(env, step):
@@ -226,7 +226,7 @@ def test_the_fire_form_burns_an_enemy_with_a_fireball(env, step):
     facing_it = dataclasses.replace(start, x=jnp.float32(ex - 5.0), y=jnp.float32(ey))
     states, _ = run(step, facing_it, [RIGHT_RUN] + [NOOP] * 12, ctx)
     assert int(states[0].fireball_steps) > 0
-    assert bool(states[-1].defeated[1]) and not bool(states[-1].died)
+    assert bool(pf.is_defeated(states[-1].defeated, 1)) and not bool(states[-1].died)
     small = dataclasses.replace(facing_it, form=jnp.int32(0))
     assert int(run(step, small, [RIGHT_RUN], ctx)[0][0].fireball_steps) == 0
 
@@ -259,7 +259,7 @@ def test_reward_and_info_at_the_flag_and_in_a_gap(env):
 def test_tile_observation_shows_the_level_around_the_agent(env):
     ctx = env.default_context()
     obs = np.asarray(env.observe(env.init(jax.random.key(0), ctx), ctx))
-    grid = obs[: pf.VIEW_ROWS * pf.VIEW_COLS * 4].reshape(pf.VIEW_ROWS, pf.VIEW_COLS, 4)
+    grid = obs[: pf.VIEW_ROWS * pf.VIEW_COLS * 4].reshape(4, pf.VIEW_ROWS, pf.VIEW_COLS)
     level = level_map(ctx)
     column = int(np.floor(pf.START_X + pf.AGENT_WIDTH / 2))
     for r in range(pf.VIEW_ROWS):
@@ -267,7 +267,7 @@ def test_tile_observation_shows_the_level_around_the_agent(env):
             row, col = pf.BASE_HEIGHT - pf.VIEW_BELOW + r, column - pf.VIEW_BEHIND + c
             inside = 0 <= row < pf.ROWS and 0 <= col
             solid = col < 0 or (inside and level[row, col] in (pf.GROUND, pf.BRICK, pf.PIPE))
-            assert grid[r, c, 0] == solid, (r, c)
+            assert grid[0, r, c] == solid, (r, c)
     assert env.observation_space.contains(obs)
 
 

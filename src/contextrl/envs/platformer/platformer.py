@@ -43,9 +43,10 @@ FLAG_FROM_END = 3  # the flag pole's column, counted from the level's end
 MAX_WIDTH = 1000
 START_AREA = SEGMENT // 2  # flat columns before the first generated segment
 MAX_SEGMENTS = (MAX_WIDTH + START_AREA) // SEGMENT + 1
+DEFEATED_WORDS = -(-MAX_SEGMENTS // 32)  # one bit per segment's enemy
 CEILING_ROW = ROWS - 1  # the underground's brick ceiling
 
-HASH_OFFSET = 19  # chosen so that the default level opens with a gap, an enemy and a pipe
+HASH_OFFSET = 116  # chosen so that the default level opens with a gap, an enemy and a pipe
 
 # ---- the agent and its physics -----------------------------------------------------------------------
 AGENT_WIDTH = 0.75
@@ -61,10 +62,7 @@ STOMP_BOUNCE = 0.5  # fraction of the jump speed an agent bounces off a stomped 
 JUMP_MARGIN = 0.6  # tiles kept between the highest jump and the highest step or pipe
 GAP_MARGIN = 0.25  # tiles kept between the widest clearable gap and the widest generated one
 AIR_STEPS_MARGIN = 1  # whole steps of airtime not counted on
-REACH_STEPS = 64  # steps of running from rest the reach computation follows
-_RUNNING_SUM = np.tril(
-    np.ones((REACH_STEPS, REACH_STEPS), np.float32)
-)  # a cumulative sum as a product
+REACH_STEPS = 32  # steps of running from rest the run-up is searched over
 
 # ---- enemies and fireballs ---------------------------------------------------------------------------
 ENEMY_SIZE = 0.9
@@ -201,7 +199,7 @@ class PlatformerContext(ContextBase):
         0.06,
         0.2,
         unit="tiles/step²",
-        doc="downward acceleration",
+        doc="downward acceleration (gaps, steps and pipes adapt to what the jump can clear)",
         affects=("dynamics", "observation"),
     )
     jump_speed: float = feature(
@@ -209,7 +207,7 @@ class PlatformerContext(ContextBase):
         0.8,
         1.4,
         unit="tiles/step",
-        doc="upward speed a jump starts with",
+        doc="upward speed a jump starts with (the level adapts, as to gravity)",
         affects=("dynamics", "observation"),
     )
     run_speed: float = feature(
@@ -217,7 +215,7 @@ class PlatformerContext(ContextBase):
         0.2,
         0.8,
         unit="tiles/step",
-        doc="top running speed (walking reaches half of it)",
+        doc="top running speed, walking reaches half of it (gap widths adapt)",
         affects=("dynamics", "observation"),
     )
 
@@ -236,7 +234,7 @@ class PlatformerState:
     form: jax.Array  # 0 small, 1 large, 2 fire
     invulnerable: jax.Array  # steps left
     clock: jax.Array  # steps since the episode started: enemies patrol by it
-    defeated: jax.Array  # (MAX_SEGMENTS,) bool: the segment's enemy was stomped or burnt
+    defeated: jax.Array  # (DEFEATED_WORDS,) uint32, bit per segment: its enemy was stomped or burnt
     fireball: jax.Array  # (x, y, direction) of the fireball
     fireball_steps: jax.Array  # steps the fireball still flies (0: none)
     completed: jax.Array
@@ -244,19 +242,27 @@ class PlatformerState:
 
 
 # ---- the level ---------------------------------------------------------------------------------------
-def _uniform(seed, style, segment, salt: int):
-    """A uniform number in [0, 1) from an integer hash of (seed, style, segment, salt)."""
+def _mix(x):
+    """A 32-bit integer hash (a murmur-style finaliser)."""
+    x = (x ^ (x >> 16)) * jnp.uint32(0x7FEB352D)
+    x = (x ^ (x >> 15)) * jnp.uint32(0x846CA68B)
+    return x ^ (x >> 16)
+
+
+def _uniforms(seed, style, segment):
+    """Eight uniform numbers in (0, 1) per segment (resolution 1/256) from two hashes of
+    (seed, style, segment): one byte each."""
     x = (
         jnp.asarray(seed).astype(jnp.uint32) * jnp.uint32(0x9E3779B1)
         + jnp.asarray(style).astype(jnp.uint32) * jnp.uint32(0x632BE5AB)
         + jnp.asarray(segment).astype(jnp.uint32) * jnp.uint32(0x85EBCA77)
-        + jnp.uint32(salt) * jnp.uint32(0xC2B2AE3D)
         + jnp.uint32(HASH_OFFSET)
     )
-    x = (x ^ (x >> 16)) * jnp.uint32(0x7FEB352D)
-    x = (x ^ (x >> 15)) * jnp.uint32(0x846CA68B)
-    x = x ^ (x >> 16)
-    return (x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))
+    words = (_mix(x), _mix(x ^ jnp.uint32(0xC2B2AE3D)))
+    return [
+        ((words[i // 4] >> (8 * (i % 4))) & 255).astype(jnp.float32) / 256 + 1 / 512
+        for i in range(8)
+    ]
 
 
 def speed_kept(context):
@@ -273,17 +279,19 @@ def jump_reach(context) -> dict[str, jax.Array]:
     """What the context's physics can clear: highest climb, widest gap (tiles), and the headroom used.
 
     The agent jumps from rest after a run-up of ``RUN_UP`` tiles (minus its width and a margin): its
-    speed follows the step's update ``vx ← keep·vx + (1 − keep)·run_speed`` on the ground and in the air. The airtime to come down onto a step of the highest rise follows the step's update
-    ``vy ← vy − g, y ← y + vy`` exactly (``y_n = n·J − g·n(n+1)/2``), cut by the underground's ceiling.
+    speed follows the step's update ``vx ← keep·vx + (1 − keep)·run_speed`` on the ground and in the
+    air, whose sum is closed-form. The airtime to come down onto a step of the highest rise follows the
+    step's update ``vy ← vy − g, y ← y + vy`` exactly (``y_n = n·J − g·n(n+1)/2``), cut by the underground's ceiling.
     """
     g, jump = context.gravity, context.jump_speed
-    keep = speed_kept(context)
-    steps = jnp.arange(1, REACH_STEPS + 1, dtype=jnp.float32)
-    speeds = context.run_speed * (1.0 - keep**steps)
-    travelled = _RUNNING_SUM @ speeds
+    keep, run = speed_kept(context), context.run_speed
+
+    def travelled(steps):  # tiles covered in ``steps`` steps of running from rest
+        return run * (steps - keep * (1.0 - keep**steps) / (1.0 - keep))
+
     room = RUN_UP - AGENT_WIDTH - 0.5
-    take_off = jnp.sum(travelled <= room) - 1  # the last step still on the run-up (-1: none)
-    before = jnp.where(take_off >= 0, travelled[jnp.maximum(take_off, 0)], 0.0)
+    steps = jnp.arange(1, REACH_STEPS + 1, dtype=jnp.float32)
+    take_off = jnp.sum(travelled(steps) <= room).astype(jnp.float32)  # steps still on the run-up
 
     launch = jump - g / 2  # the discrete arc is the continuous one launched at J − g/2
     apex = launch**2 / (2 * g)
@@ -305,8 +313,7 @@ def jump_reach(context) -> dict[str, jax.Array]:
     falling = jnp.sqrt(2 * jnp.maximum(top - rise, 0.0) / g)
     airtime = jnp.floor(rising + falling) - AIR_STEPS_MARGIN
     # In the air the agent keeps accelerating as on the ground (holding right).
-    landing = jnp.clip(take_off + airtime.astype(jnp.int32), 0, REACH_STEPS - 1)
-    clearable = travelled[landing] - before - AGENT_WIDTH - GAP_MARGIN
+    clearable = travelled(take_off + airtime) - travelled(take_off) - AGENT_WIDTH - GAP_MARGIN
     widest_gap = jnp.clip(jnp.floor(context.gap_width * clearable), 0, MAX_GAP)
     tallest_pipe = jnp.clip(climb, 0, MAX_PIPE)
     return {"rise": rise, "gap": widest_gap, "pipe": tallest_pipe}
@@ -320,9 +327,7 @@ def segment_of(column):
 def segments(context, reach, segment):
     """The layout of segments (an int array): gap width, ground height, pipe, bricks and enemy."""
     seed, style = context.noise_seed, context.level_index
-
-    def u(salt):
-        return _uniform(seed, style, segment, salt)
+    u = _uniforms(seed, style, segment).__getitem__
 
     inside = (segment >= 1) & (segment < MAX_SEGMENTS)
     p_gap = jnp.clip(jnp.asarray(STYLE_GAP)[style] * context.gap_frequency, 0.0, 0.9)
@@ -363,37 +368,52 @@ def enemy_x(layout, clock):
     return layout["patrol_from"] + jnp.where(walked < span, walked, 2 * span - walked)
 
 
-def tiles(context, reach, columns, rows):
-    """Tile kinds at (columns, rows) (broadcast int arrays): the level as a pure function."""
+def column_profile(context, reach, columns):
+    """Each column's vertical extents (int arrays shaped like ``columns``): ground, pipe, bricks,
+    flag pole (empty extents are [0, 0)), and whether it is lava-floored or wall."""
     segment = segment_of(columns)
     layout = segments(context, reach, segment)
     offset = columns - (segment * SEGMENT - START_AREA)
     width = context.level_width
-    flat = columns >= width - FLAT_END
+    shaped = ~(columns >= width - FLAT_END)  # gaps, pipes and bricks only before the flat end
     style = context.level_index
-    in_gap = (offset < layout["gap"]) & ~flat
+    in_gap = (offset < layout["gap"]) & shaped
     height = layout["height"]
-    bottom = jnp.where(style == SKY, height - 1, 0)
-    ground = ~in_gap & (rows < height) & (rows >= bottom)
-    pipe = (
-        (layout["pipe_height"] > 0)
-        & ~flat
-        & (offset >= layout["pipe_at"])
-        & (offset < layout["pipe_at"] + 2)
-        & (rows >= height)
-        & (rows < height + layout["pipe_height"])
-    )
-    bricks = layout["bricks"] & ~flat & (offset >= 2) & (offset < 6) & (rows == layout["brick_row"])
-    ceiling = (style == UNDERGROUND) & (rows == CEILING_ROW)
-    lava = (style == CASTLE) & in_gap & (rows == 0)
-    flag = (columns == width - FLAG_FROM_END) & (rows >= height) & (rows < height + 9)
+    pipe = (offset >= layout["pipe_at"]) & (offset < layout["pipe_at"] + 2) & shaped
+    bricks = layout["bricks"] & shaped & (offset >= 2) & (offset < 6)
+    flag = columns == width - FLAG_FROM_END
     wall = (columns >= width) | (columns < 0)
-    kind = jnp.where(flag, FLAG, EMPTY)
+    zero = jnp.zeros_like(height)
+    return {
+        "ground_from": jnp.where(wall, -(1 << 20), jnp.where(style == SKY, height - 1, 0)),
+        "ground_to": jnp.where(wall, 1 << 20, jnp.where(in_gap, zero, height)),
+        "pipe_to": jnp.where(pipe, height + layout["pipe_height"], zero),
+        "pipe_from": height,
+        "brick_row": jnp.where(bricks, layout["brick_row"], -(1 << 20)),
+        "flag_to": jnp.where(flag, height + 9, zero),
+        "lava": (style == CASTLE) & in_gap,
+        "ceiling": jnp.broadcast_to(style == UNDERGROUND, jnp.shape(height)),
+    }
+
+
+def tiles(context, reach, columns, rows):
+    """Tile kinds at (columns, rows) (broadcast int arrays): the level as a pure function.
+
+    Each column's profile is computed once and kept apart from the per-tile tests by an optimisation
+    barrier: fused into them, the compiler would hash the column's segment again for every tile.
+    """
+    profile = jax.lax.optimization_barrier(column_profile(context, reach, columns))
+    inside = (rows >= 0) & (rows < ROWS)
+    ground = (rows >= profile["ground_from"]) & (rows < profile["ground_to"])
+    pipe = (rows >= profile["pipe_from"]) & (rows < profile["pipe_to"])
+    bricks = (rows == profile["brick_row"]) | (profile["ceiling"] & (rows == CEILING_ROW))
+    lava = profile["lava"] & (rows == 0)
+    flag = (rows >= profile["pipe_from"]) & (rows < profile["flag_to"])
+    kind = jnp.where(flag & inside, FLAG, EMPTY)
     kind = jnp.where(lava, LAVA, kind)
-    kind = jnp.where(bricks | ceiling, BRICK, kind)
-    kind = jnp.where(pipe, PIPE, kind)
-    kind = jnp.where(ground | wall, GROUND, kind)
-    return jnp.where((rows < 0) | (rows >= ROWS), jnp.where(wall, GROUND, EMPTY), kind)
+    kind = jnp.where(bricks, BRICK, kind)
+    kind = jnp.where(pipe & inside, PIPE, kind)
+    return jnp.where(ground, GROUND, kind)
 
 
 def _solid(kind):
@@ -458,7 +478,7 @@ class Platformer(Env):
             form=jnp.asarray(context.mario_state, jnp.int32),
             invulnerable=jnp.zeros((), jnp.int32),
             clock=jnp.zeros((), jnp.int32),
-            defeated=jnp.zeros((MAX_SEGMENTS,), bool),
+            defeated=jnp.zeros((DEFEATED_WORDS,), jnp.uint32),
             fireball=jnp.zeros((3,), jnp.float32),
             fireball_steps=jnp.zeros((), jnp.int32),
             completed=false,
@@ -487,6 +507,25 @@ class Platformer(Env):
             "distance": distance,
             "progress": jnp.clip(distance / flag, 0.0, 1.0),
         }
+
+
+def is_defeated(defeated, segment) -> jax.Array:
+    """Whether the enemy of ``segment`` (int array) was defeated, from the bits ``defeated``."""
+    segment = jnp.asarray(segment)
+    words = jnp.arange(DEFEATED_WORDS)
+    word = jnp.sum(
+        jnp.where(words == (segment[..., None] >> 5), defeated, jnp.uint32(0)), axis=-1
+    ).astype(jnp.uint32)
+    return ((word >> (segment & 31).astype(jnp.uint32)) & 1) == 1
+
+
+def _defeat(defeated, segment, hit):
+    """``defeated`` with the bit of each ``segment`` (1-d) set where ``hit``."""
+    words = jnp.arange(DEFEATED_WORDS)
+    for i in range(segment.shape[0]):
+        bit = hit[i].astype(jnp.uint32) << (segment[i] & 31).astype(jnp.uint32)
+        defeated = defeated | jnp.where(words == segment[i] >> 5, bit, jnp.uint32(0))
+    return defeated
 
 
 def agent_height(form):
@@ -563,8 +602,7 @@ def step_physics(state: PlatformerState, action, context):
     column = jnp.stack([jnp.floor(x), jnp.floor(x), jnp.floor(fx)]).astype(jnp.int32)
     segment = segment_of(column) + jnp.array([0, 1, 0])
     layout = segments(context, reach, segment)
-    safe_segment = jnp.clip(segment, 0, MAX_SEGMENTS - 1)
-    alive = layout["enemy"] & ~state.defeated[safe_segment]
+    alive = layout["enemy"] & ~is_defeated(state.defeated, segment)
     ex = enemy_x(layout, clock.astype(jnp.float32))
     ey = layout["height"].astype(jnp.float32)
 
@@ -579,17 +617,17 @@ def step_physics(state: PlatformerState, action, context):
     stomp = touch & (vy < 0) & (state.y >= ey[:2] + ENEMY_SIZE * 0.5)
     hurt = jnp.any(touch & ~stomp) & (state.invulnerable == 0)
     vy = jnp.where(jnp.any(stomp), STOMP_BOUNCE * context.jump_speed, vy)
-    defeated = state.defeated.at[safe_segment[:2]].max(stomp)
+    defeated = _defeat(state.defeated, segment[:2], stomp)
 
     # The fire form throws a fireball with the run button; it flies straight and burns one enemy.
     burn = (
         flying
         & alive[2]
-        & ~defeated[safe_segment[2]]
+        & ~is_defeated(defeated, segment[2])
         & (jnp.abs(fx - (ex[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
         & (jnp.abs(fy - (ey[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
     )
-    defeated = defeated.at[safe_segment[2]].max(burn)
+    defeated = _defeat(defeated, segment[2:], burn[None])
     hits_wall = _solid(
         tiles(context, reach, jnp.floor(fx).astype(jnp.int32), jnp.floor(fy).astype(jnp.int32))
     )
@@ -639,11 +677,12 @@ def tile_observation(state: PlatformerState, context) -> jax.Array:
     row = jnp.floor(state.y).astype(jnp.int32)
     columns = column - VIEW_BEHIND + jnp.arange(VIEW_COLS)
     rows = row - VIEW_BELOW + jnp.arange(VIEW_ROWS)
-    kinds = tiles(context, reach, columns[None, :], rows[:, None])
+    # Materialised once: fused, each channel below would compute the tiles again.
+    kinds = jax.lax.optimization_barrier(tiles(context, reach, columns[None, :], rows[:, None]))
     first = segment_of(columns[0])
     segment = first + jnp.arange(3)  # a window of 12 columns spans at most 3 segments
     layout = segments(context, reach, segment)
-    alive = layout["enemy"] & ~state.defeated[jnp.clip(segment, 0, MAX_SEGMENTS - 1)]
+    alive = layout["enemy"] & ~is_defeated(state.defeated, segment)
     enemy_column = jnp.floor(enemy_x(layout, state.clock.astype(jnp.float32)) + ENEMY_SIZE / 2)
     enemy_row = layout["height"]
     enemy = jnp.any(
@@ -652,7 +691,7 @@ def tile_observation(state: PlatformerState, context) -> jax.Array:
         & (enemy_row[:, None, None] == rows[None, :, None]),
         axis=0,
     )
-    grid = jnp.stack([_solid(kinds), kinds == LAVA, enemy, kinds == FLAG], axis=-1)
+    planes = [_solid(kinds), kinds == LAVA, enemy, kinds == FLAG]  # (channel, row, column) order
     own = jnp.stack(
         [
             state.vx / MAX_SPEED,
@@ -665,4 +704,4 @@ def tile_observation(state: PlatformerState, context) -> jax.Array:
             state.on_ground.astype(jnp.float32),
         ]
     )
-    return jnp.concatenate([grid.reshape(-1).astype(jnp.float32), own])
+    return jnp.concatenate([plane.reshape(-1).astype(jnp.float32) for plane in planes] + [own])

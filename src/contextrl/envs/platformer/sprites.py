@@ -177,7 +177,7 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
     """An RGB picture (rows·tile_pixels, cols·tile_pixels, 3) uint8 of the level around the agent."""
     reach = world.jump_reach(context)
     height_px, width_px = rows * tile_pixels, cols * tile_pixels
-    camera_x = state.x - cols / 3
+    camera_x = jnp.maximum(state.x - cols / 3, 0.0)  # never left of the level start
     camera_y = jnp.clip(state.y - rows / 2, 0.0, max(world.ROWS - rows, 0))
     # Pixel centres in world (tile) coordinates, snapped to the pixel grid so scrolling is crisp.
     left = jnp.floor(camera_x * tile_pixels) / tile_pixels
@@ -209,7 +209,7 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
     # Enemies of the segments in view, the fireball, then the agent (blinking while invulnerable).
     segment = world.segment_of(first_column) + jnp.arange(cols // world.SEGMENT + 2)
     layout = world.segments(context, reach, segment)
-    alive = layout["enemy"] & ~state.defeated[jnp.clip(segment, 0, world.MAX_SEGMENTS - 1)]
+    alive = layout["enemy"] & ~world.is_defeated(state.defeated, segment)
     enemy_x = world.enemy_x(layout, state.clock.astype(jnp.float32))
     for i in range(segment.shape[0]):
         drawn = _sprite(
