@@ -211,9 +211,12 @@ def test_enemies_are_stomped_from_above_and_hurt_from_the_side(env, step):
     )
     small, reward, done = step(side, NOOP, ctx)
     assert bool(small.died) and bool(done) and float(reward) < -pf.DEATH_PENALTY + 1
-    large, reward, done = step(dataclasses.replace(side, form=jnp.int32(1)), NOOP, ctx)
+    large_ctx = ctx.replace(mario_state="large")
+    large, reward, done = step(side, NOOP, large_ctx)
     assert (
-        not bool(done) and int(large.form) == 0 and int(large.invulnerable) == pf.INVULNERABLE_STEPS
+        not bool(done)
+        and int(pf.current_form(large, large_ctx)) == 0
+        and int(large.invulnerable) == pf.INVULNERABLE_STEPS
     )
     assert not bool(pf.is_defeated(large.defeated, 1))
 
@@ -222,13 +225,13 @@ def test_the_fire_form_burns_an_enemy_with_a_fireball(env, step):
     ctx = env.context(mario_state="fire")
     ex, ey = enemy_in_segment(ctx, 1, 1)
     start = env.init(jax.random.key(0), ctx)
-    assert int(start.form) == 2
+    assert int(pf.current_form(start, ctx)) == 2
     facing_it = dataclasses.replace(start, x=jnp.float32(ex - 5.0), y=jnp.float32(ey))
     states, _ = run(step, facing_it, [RIGHT_RUN] + [NOOP] * 12, ctx)
     assert int(states[0].fireball_steps) > 0
     assert bool(pf.is_defeated(states[-1].defeated, 1)) and not bool(states[-1].died)
-    small = dataclasses.replace(facing_it, form=jnp.int32(0))
-    assert int(run(step, small, [RIGHT_RUN], ctx)[0][0].fireball_steps) == 0
+    small = ctx.replace(mario_state="small")
+    assert int(run(step, facing_it, [RIGHT_RUN], small)[0][0].fireball_steps) == 0
 
 
 def test_reward_and_info_at_the_flag_and_in_a_gap(env):

@@ -185,7 +185,7 @@ class PlatformerContext(ContextBase):
         kind="categorical",
         choices=("small", "large", "fire"),
         doc="the form the agent starts in: large survives one hit, fire also throws fireballs",
-        affects=("start_state",),
+        affects=("dynamics", "observation"),
     )
     mario_inertia: float = feature(
         DEFAULT_INERTIA,
@@ -223,7 +223,7 @@ class PlatformerContext(ContextBase):
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class PlatformerState:
-    """The agent (feet at ``y``, left side at ``x``), its form, one fireball and the stomped enemies."""
+    """The agent (feet at ``y``, left side at ``x``), hits taken, one fireball and the stomped enemies."""
 
     x: jax.Array
     y: jax.Array
@@ -231,7 +231,7 @@ class PlatformerState:
     vy: jax.Array
     on_ground: jax.Array
     facing: jax.Array  # +1 right, -1 left
-    form: jax.Array  # 0 small, 1 large, 2 fire
+    hits: jax.Array  # hits taken: each one drops the form mario_state by one (fire → large → small)
     invulnerable: jax.Array  # steps left
     clock: jax.Array  # steps since the episode started: enemies patrol by it
     defeated: jax.Array  # (DEFEATED_WORDS,) uint32, bit per segment: its enemy was stomped or burnt
@@ -475,7 +475,7 @@ class Platformer(Env):
             vy=zero,
             on_ground=jnp.ones((), bool),
             facing=jnp.ones((), jnp.int32),
-            form=jnp.asarray(context.mario_state, jnp.int32),
+            hits=jnp.zeros((), jnp.int32),
             invulnerable=jnp.zeros((), jnp.int32),
             clock=jnp.zeros((), jnp.int32),
             defeated=jnp.zeros((DEFEATED_WORDS,), jnp.uint32),
@@ -528,6 +528,11 @@ def _defeat(defeated, segment, hit):
     return defeated
 
 
+def current_form(state, context) -> jax.Array:
+    """0 small, 1 large, 2 fire: the context's ``mario_state`` less the hits taken."""
+    return jnp.maximum(context.mario_state - state.hits, 0)
+
+
 def agent_height(form):
     return jnp.where(form > 0, LARGE_HEIGHT, SMALL_HEIGHT)
 
@@ -554,7 +559,8 @@ def step_physics(state: PlatformerState, action, context):
     reach = jump_reach(context)
     direction, run, jump, down = (jnp.asarray(_ACTION_TABLE)[action, i] for i in range(4))
     ducking = (down == 1) & state.on_ground
-    height = jnp.where(ducking, SMALL_HEIGHT, agent_height(state.form))
+    form = current_form(state, context)
+    height = jnp.where(ducking, SMALL_HEIGHT, agent_height(form))
 
     # Horizontal: the speed moves towards the pressed direction's speed (zero without one), as fast as
     # the inertia lets it.
@@ -589,7 +595,7 @@ def step_physics(state: PlatformerState, action, context):
 
     # Enemies of the segments the agent overlaps (two) and the fireball's (one), laid out at once.
     clock = state.clock + 1
-    throw = (state.form == 2) & (run == 1) & (state.fireball_steps == 0)
+    throw = (form == 2) & (run == 1) & (state.fireball_steps == 0)
     fireball = jnp.where(
         throw,
         jnp.stack([x + AGENT_WIDTH / 2, y + height * 0.5, facing.astype(jnp.float32)]),
@@ -635,16 +641,16 @@ def step_physics(state: PlatformerState, action, context):
     fireball = jnp.stack([fx, fy, fireball[2]])
 
     # A hit shrinks a large or fire agent (fire → large → small) and kills a small one.
-    form = jnp.where(hurt, state.form - 1, state.form)
+    hits = state.hits + hurt.astype(jnp.int32)
     invulnerable = jnp.where(hurt, INVULNERABLE_STEPS, jnp.maximum(state.invulnerable - 1, 0))
     lava = (context.level_index == CASTLE) & (y < 1.0)
-    fell = y + agent_height(form) < 0
+    fell = y + agent_height(jnp.maximum(form - hurt, 0)) < 0
     over_lava = (patch[jnp.clip(-corner[1], 0, 6)] == LAVA) & (corner[1] <= 0)  # row 0 of the patch
     lava_below = over_lava[
         jnp.clip(jnp.floor(x).astype(jnp.int32) - corner[0] + jnp.array([0, 1]), 0, 3)
     ]
     covered = jnp.floor(x) + jnp.array([0.0, 1.0]) < x + AGENT_WIDTH
-    died = (hurt & (state.form == 0)) | fell | (lava & jnp.any(lava_below & covered))
+    died = (hurt & (form == 0)) | fell | (lava & jnp.any(lava_below & covered))
     flag = (context.level_width - FLAG_FROM_END).astype(jnp.float32) + 0.5
     completed = (x + AGENT_WIDTH >= flag) & ~died
 
@@ -655,7 +661,7 @@ def step_physics(state: PlatformerState, action, context):
         vy=vy,
         on_ground=landed,
         facing=facing,
-        form=jnp.maximum(form, 0),
+        hits=hits,
         invulnerable=invulnerable,
         clock=clock,
         defeated=defeated,
@@ -698,8 +704,8 @@ def tile_observation(state: PlatformerState, context) -> jax.Array:
             jnp.clip(state.vy / MAX_FALL, -1.0, 1.0),
             state.x - jnp.floor(state.x),
             state.y - jnp.floor(state.y),
-            (state.form >= 1).astype(jnp.float32),
-            (state.form == 2).astype(jnp.float32),
+            (current_form(state, context) >= 1).astype(jnp.float32),
+            (current_form(state, context) == 2).astype(jnp.float32),
             (state.invulnerable > 0).astype(jnp.float32),
             state.on_ground.astype(jnp.float32),
         ]

@@ -244,9 +244,9 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
         state.x,
         state.y,
         world.AGENT_WIDTH,
-        world.agent_height(state.form),
+        world.agent_height(world.current_form(state, context)),
         AGENT_PATTERN,
-        jnp.asarray(AGENT_COLORS)[state.form],
+        jnp.asarray(AGENT_COLORS)[world.current_form(state, context)],
     )
     visible = (state.invulnerable // 3) % 2 == 0
     return jnp.where(visible, agent, image)
