@@ -11,18 +11,14 @@ count steps of single copies (``num_envs`` per call). Ratios are against CARL's 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-CARL_VENV = ROOT / ".venv-carl"
-CARL_VERSION = "1.1.1"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _peers import CARL, run_peer  # noqa: E402
 
 CARL_SCRIPT = """
 import json, sys, time, warnings
@@ -45,30 +41,8 @@ print(json.dumps({"steps_per_s": steps / (time.perf_counter() - start)}))
 """
 
 
-def carl_python() -> Path:
-    """The interpreter of ``.venv-carl``, created with ``carl-bench`` on first use."""
-    python = CARL_VENV / "bin" / "python"
-    check = [str(python), "-c", "import carl.envs"]
-    if python.exists() and subprocess.run(check, capture_output=True).returncode == 0:
-        return python
-    print(f"creating {CARL_VENV} with carl-bench=={CARL_VERSION} (once)...", file=sys.stderr)
-    subprocess.run([sys.executable, "-m", "venv", str(CARL_VENV)], check=True)
-    subprocess.run(
-        [str(python), "-m", "pip", "install", "-q", f"carl-bench=={CARL_VERSION}"], check=True
-    )
-    return python
-
-
 def bench_carl(steps: int) -> float:
-    python = carl_python()
-    result = subprocess.run(
-        [str(python), "-c", CARL_SCRIPT, str(steps)],
-        capture_output=True,
-        text=True,
-        check=True,
-        env={**os.environ, "PYTHONWARNINGS": "ignore"},
-    )
-    return json.loads(result.stdout.strip().splitlines()[-1])["steps_per_s"]
+    return run_peer(CARL, CARL_SCRIPT, steps)["steps_per_s"]
 
 
 def bench_single(env, steps: int) -> float:

@@ -8,9 +8,12 @@ writes how a context is applied and how the simulator steps; it is vectorised ac
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar
 
 import numpy as np
+
+from contextrl.context.features import ContextError
 
 
 class HostEnv:
@@ -39,6 +42,34 @@ class HostEnv:
     def context(self, **values):
         return self.context_space.make(**values)
 
+    def context_values(self, context: Any) -> dict[str, float]:
+        """One unbatched context as plain floats, checked (type, one value each, finite, bounds).
+
+        The checks of ``context_space.check`` written for one context, cheap enough for every reset.
+        """
+        if not isinstance(context, self.context_type):
+            raise ContextError(
+                f"{self.name}: expected a {self.context_type.__name__}, got {type(context).__name__}"
+            )
+        values = {}
+        for name, feature in self.context_space.features.items():
+            value = np.asarray(getattr(context, name))
+            if value.ndim != 0:
+                raise ContextError(
+                    f"{self.name}: {name} must be one value per episode, got shape {value.shape}"
+                )
+            value = float(value)
+            if not math.isfinite(value):
+                raise ContextError(f"{name}: value {value!r} is not finite (NaN or inf)")
+            lower, upper = float(np.float32(feature.lower)), float(np.float32(feature.upper))
+            if not lower <= value <= upper:  # compared as float32, the precision a context holds
+                raise ContextError(
+                    f"{name}: value {value:g} is outside its bounds "
+                    f"[{feature.lower:g}, {feature.upper:g}]"
+                )
+            values[name] = value
+        return values
+
     # ---- written by each host environment ------------------------------------------------------------
     @property
     def action_space(self):
@@ -57,6 +88,10 @@ class HostEnv:
     def step_physics(self, action) -> tuple[np.ndarray, float, bool]:
         """``(observation, reward, terminated)`` for one action under the current context."""
         raise NotImplementedError
+
+    def step_info(self) -> dict[str, Any]:
+        """Entries the gymnasium adapter adds to ``info`` after each reset and step (none by default)."""
+        return {}
 
     def render_frame(self) -> np.ndarray:
         """An RGB frame (H, W, 3, uint8) of the current state."""

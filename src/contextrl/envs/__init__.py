@@ -31,3 +31,35 @@ if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` ext
     for _name in DMC_ENVIRONMENTS:
         _factory = functools.partial(_make_dmc, _name)
         register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
+
+BOX2D_ENVIRONMENTS = {  # id: (class name, constructor arguments, CARL's names)
+    "LunarLander": ("LunarLander", {}, ("CARLLunarLander",)),
+    "LunarLanderContinuous": ("LunarLander", {"continuous": True}, ()),
+    "BipedalWalker": ("BipedalWalker", {}, ("CARLBipedalWalker",)),
+    "VehicleRacing": ("VehicleRacing", {}, ("CARLVehicleRacing",)),
+}
+
+
+def _make_box2d(name: str, defaults: dict, **kwargs):
+    """Build a Box2D environment; Box2D and pygame are imported when the first one is made."""
+    from contextrl.envs import box2d
+
+    return getattr(box2d, name)(**{**defaults, **kwargs})
+
+
+# the optional `box2d` extra (VehicleRacing draws its pixel observations with pygame)
+if importlib.util.find_spec("Box2D") is not None and importlib.util.find_spec("pygame") is not None:
+    for _id, (_name, _defaults, _aliases) in BOX2D_ENVIRONMENTS.items():
+        _factory = functools.partial(_make_box2d, _name, _defaults)
+        register(_id, _factory, family="box2d", aliases=_aliases, host=True)
+
+
+def _make_rna(**kwargs):
+    """Build RnaDesign; ViennaRNA is imported when the first one is made, not on import."""
+    from contextrl.envs.rna import RnaDesign
+
+    return RnaDesign(**kwargs)
+
+
+if importlib.util.find_spec("RNA") is not None:  # the optional `rna` extra (viennarna)
+    register("RnaDesign", _make_rna, family="rna", aliases=("CARLRnaDesignEnv",), host=True)

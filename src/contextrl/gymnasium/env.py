@@ -157,9 +157,13 @@ class ContextualGymEnv(gymnasium.Env):
         if not self.obs_context_as_dict:
             return flat
         split = self.backend.base_size
+        # A host env's original observation keeps its own space there (pixels: shape and dtype).
+        base = getattr(self.backend, "base_space", None)
+        if base is None:
+            base = gymnasium.spaces.Box(flat.low[:split], flat.high[:split], dtype=np.float32)
         return gymnasium.spaces.Dict(
             {
-                "obs": gymnasium.spaces.Box(flat.low[:split], flat.high[:split], dtype=np.float32),
+                "obs": base,
                 "context": gymnasium.spaces.Box(
                     flat.low[split:], flat.high[split:], dtype=np.float32
                 ),
@@ -170,7 +174,9 @@ class ContextualGymEnv(gymnasium.Env):
         if not self.obs_context_as_dict:
             return flat
         split = self.backend.base_size
-        return {"obs": flat[:split], "context": flat[split:]}
+        obs_space = self.observation_space["obs"]
+        obs = flat[:split].reshape(obs_space.shape).astype(obs_space.dtype, copy=False)
+        return {"obs": obs, "context": flat[split:]}
 
     def _override(self, options: Mapping[str, Any] | None) -> np.ndarray | None:
         """The context vector asked for by ``reset(options=...)``, validated, or None."""
@@ -236,8 +242,12 @@ class ContextualGymEnv(gymnasium.Env):
         return self._values_of_member[index]
 
     def _fresh_info(self) -> dict[str, Any]:
-        """A new info dict per call (users keep them; gymnasium's checker insists)."""
-        return {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
+        """A new info dict per call (users keep them; gymnasium's checker insists), with what a host
+        environment reports of its episode (``HostEnv.step_info``)."""
+        info = {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
+        if isinstance(self.backend, HostBackend):
+            info.update(self.contextrl_env.step_info())
+        return info
 
     def step(self, action):
         if self._key_bits is None:

@@ -33,7 +33,6 @@ would be a feature that does nothing.
 
 from __future__ import annotations
 
-import math
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; must be set before MuJoCo loads
@@ -46,7 +45,7 @@ import numpy as np  # noqa: E402
 from dm_control import suite  # noqa: E402
 from dm_control.rl import control  # noqa: E402
 
-from contextrl.context.features import ContextError, feature  # noqa: E402
+from contextrl.context.features import feature  # noqa: E402
 from contextrl.core.host import HostEnv  # noqa: E402
 
 TIMESTEP_BOUNDS = (0.001, 0.1)
@@ -171,10 +170,6 @@ class DmcEnv(HostEnv):
         self.control_timestep = float(stock.control_timestep())
         self._capture_stock()
         self._applied: dict[str, float] = {}
-        self._bounds = [
-            (name, float(np.float32(f.lower)), float(np.float32(f.upper)))
-            for name, f in self.context_space.features.items()
-        ]
         self.n_sub_steps = int(round(self.control_timestep / self._physics.model.opt.timestep))
         parts = self._task.get_observation(self._physics)
         ends = np.cumsum([np.size(part) for part in parts.values()])
@@ -272,32 +267,8 @@ class DmcEnv(HostEnv):
 
     # ---- context ------------------------------------------------------------------------------------
     def context_values(self, context: Any) -> dict[str, float]:
-        """The context as plain floats, checked (type, bounds, finite, unbatched, valid combination).
-
-        The same checks as ``context_space.check``, written for one unbatched context so that a
-        context switch stays far below a millisecond.
-        """
-        if not isinstance(context, self.context_type):
-            raise ContextError(
-                f"{self.name}: expected a {self.context_type.__name__}, got {type(context).__name__}"
-            )
-        values = {}
-        for name, lower, upper in self._bounds:
-            value = np.asarray(getattr(context, name))
-            if value.ndim != 0:
-                raise ContextError(
-                    f"{self.name}: {name} must be one value per episode, got shape {value.shape}"
-                )
-            value = float(value)
-            if not math.isfinite(value):
-                raise ContextError(f"{name}: value {value!r} is not finite (NaN or inf)")
-            if not lower <= value <= upper:  # compared as float32, the precision a context holds
-                feature = self.context_space.features[name]
-                raise ContextError(
-                    f"{name}: value {value:g} is outside its bounds "
-                    f"[{feature.lower:g}, {feature.upper:g}]"
-                )
-            values[name] = value
+        """The context as plain floats, checked (type, bounds, finite, unbatched, valid combination)."""
+        values = super().context_values(context)
         self._check_combination(values)
         return values
 
