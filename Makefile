@@ -16,10 +16,22 @@ $(STAMP): pyproject.toml constraints.txt
 
 install: $(STAMP)
 
+# Installs the missing ones with apt-get, which needs Debian (dpkg) and root. Anywhere else it says what
+# to install and goes on: without Chromium the browser tests skip; MuJoCo's rendering tests need EGL.
 system-deps:
-	@missing=""; for p in $(SYSTEM_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
-	if [ -n "$$missing" ]; then \
-		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; fi
+	@if ! command -v dpkg >/dev/null 2>&1 || ! command -v apt-get >/dev/null 2>&1; then \
+		echo "system-deps: not a Debian system; install with your package manager: a headless EGL/OpenGL"; \
+		echo "  (libEGL, Mesa DRI drivers) and Chromium with chromedriver (browser tests skip without it;"; \
+		echo "  MuJoCo rendering tests need EGL)."; \
+		exit 0; fi; \
+	missing=""; for p in $(SYSTEM_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" != 0 ]; then \
+		echo "system-deps: missing Debian packages:$$missing"; \
+		echo "  install them with: sudo apt-get install$$missing"; \
+		echo "  (browser tests skip without Chromium; MuJoCo rendering tests need EGL)"; \
+		exit 0; fi; \
+	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing
 
 test: system-deps install
 	$(PY) -m pytest -q

@@ -180,3 +180,39 @@ def test_paper_config():
     assert config.exploration == "boltzmann" and config.temperature == 0.1
     with pytest.raises(ConfigError, match="no paper C51 setting"):
         dqn.paper_config("Pong")
+
+
+@pytest.mark.parametrize("distributional", [False, True])
+def test_dqn_and_c51_through_the_host_collector(cartpole, distributional):
+    """The host path (for host environments): CartPole stepped through gymnasium's vector API with
+    two pole lengths; episodes carry the set's ids and the short pole falls sooner."""
+    contexts = cartpole.context_space.stack(
+        [cartpole.context(length=0.1), cartpole.context(length=2.0)]
+    )
+    config = dqn.DQNConfig(
+        total_timesteps=1200,
+        learning_starts=200,
+        num_envs=2,
+        batch_size=16,
+        hidden_sizes=(16,),
+        log_every=200,
+        distributional=distributional,
+        context_obs="concat_varying",
+    )
+    result = dqn.train_gymnasium(config, "CartPole", contexts, jax.random.key(0), seed=3)
+    assert result.metrics["step"].tolist() == [400, 600, 800, 1000, 1200]
+    assert np.all(np.isfinite(result.metrics["loss"]))
+    episodes = result.metrics["episodes"]
+    np.testing.assert_array_equal(episodes["return"], episodes["length"])
+    ids = episodes["context_id"]
+    assert set(ids) == {0, 1}
+    # the short pole (id 0) falls sooner than the long one (id 1) under the early, random-ish policy
+    assert episodes["length"][ids == 0].mean() * 1.5 < episodes["length"][ids == 1].mean()
+    act = dqn.make_host_policy(
+        config,
+        cartpole.action_space,
+        cartpole.observation_space,
+        dqn._networks(config, cartpole, contexts).context,
+    )
+    actions = act(result.params, np.zeros((3, 4), np.float32), np.zeros((3, 1), np.float32), None)
+    assert actions.shape == (3,) and set(np.asarray(actions)) <= {0, 1}

@@ -1,6 +1,7 @@
 """Whole protocols on a tiny budget: run directories, reports, resume, failures, atomic writes."""
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -19,31 +20,67 @@ def sections(run: RunDir) -> list[str]:
     return [part.split("</h2>")[0] for part in html.split("<h2>")[1:]]
 
 
+# Every protocol's report on Pendulum, whose returns are all negative (heat-map scale, near-best fraction)
+PENDULUM = {"env": "Pendulum", "train": {"l": {"uniform": [0.5, 1.5]}}}
 PROTOCOLS = [
     (
-        {"protocol": "sensitivity", "features": ["length", "tau"], "magnitudes": [0.5, 1.0, 2.0]},
+        {
+            "protocol": "sensitivity",
+            "env": "Pendulum",
+            "features": ["l", "g"],
+            "magnitudes": [0.5, 1, 2],
+        },
         ["Summary", "Environment", "Sensitivity", "Spec", "Run metadata"],
-        {"sensitivity-ecdf", "environment-radar"},
+        {"sensitivity-ecdf", "sensitivity-l", "sensitivity-g"},
     ),
     (
-        {"protocol": "optimality_gap", "num_contexts": 3},
-        ["Summary", "Environment", "Optimality gap (hidden)", "Spec", "Run metadata"],
-        {"optgap-ecdf-hidden", "optgap-intervals-hidden", "optgap-per-context-hidden"},
+        {"protocol": "optimality_gap", "num_contexts": 3, **PENDULUM},
+        [
+            "Summary",
+            "Environment",
+            "Optimality gap (hidden)",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {
+            "optgap-ecdf-hidden",
+            "optgap-intervals-hidden",
+            "optgap-per-context-hidden",
+            "return-vs-l",
+        },
     ),
     (
-        {"protocol": "visibility", "num_train_contexts": 3, "num_test_contexts": 4},
-        ["Summary", "Environment", "Context visibility", "Spec", "Run metadata"],
-        {"test-ecdf", "test-histogram", "test-intervals"},
+        {"protocol": "visibility", "num_train_contexts": 3, "num_test_contexts": 4, **PENDULUM},
+        [
+            "Summary",
+            "Environment",
+            "Context visibility",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {"test-ecdf", "test-histogram", "test-intervals", "return-vs-l"},
     ),
     (
         {
             "protocol": "train_test",
+            "env": "Pendulum",
+            "train_box": {"l": [0.5, 1.0], "g": [8.0, 12.0]},
+            "test_box": {"l": [0.2, 1.5], "g": [4.0, 16.0]},
             "modes": ["A", "C"],
             "variants": ["hidden"],
             "num_test_contexts": 16,
         },
-        ["Summary", "Environment", "Train/test modes", "Spec", "Run metadata"],
-        {"heatmap-A-hidden", "heatmap-C-hidden"},
+        [
+            "Summary",
+            "Environment",
+            "Train/test modes",
+            "Test return per context",
+            "Spec",
+            "Run metadata",
+        ],
+        {"heatmap-A-hidden", "heatmap-C-hidden", "return-vs-l", "return-vs-g"},
     ),
     (
         {"protocol": "tabular", "num_random": 2},
@@ -63,10 +100,16 @@ def test_every_protocol_runs_end_to_end(data, expected_sections, expected_figure
     assert expected_figures <= figures
     results = run.results()
     assert not results.empty and np.all(np.isfinite(results["return"]))
+    if data["protocol"] != "tabular":
+        assert results["return"].max() < 0
     if data["protocol"] == "sensitivity":
-        # 2 seeds x (2 features x 3 magnitudes); the default magnitude repeats the default context
-        assert len(results) == 2 * 6
-        assert set(results["feature"]) == {"length", "tau"}
+        # 2 seeds x (the default context once + 2 features x the 2 magnitudes other than 1)
+        assert len(results) == 2 * 5
+        assert set(results["feature"]) == {"(default)", "l", "g"}
+    if data["protocol"] == "optimality_gap":
+        html = (run.path / "report.html").read_text()
+        fractions = re.search(r"general (\d\.\d\d), specialists (\d\.\d\d)", html).groups()
+        assert max(map(float, fractions)) > 0  # someone reaches the best return, though negative
     if data["protocol"] == "tabular":
         gaps = results.groupby("trial").apply(
             lambda g: (g["optimal_return"] - g["oblivious_return"]).mean(), include_groups=False

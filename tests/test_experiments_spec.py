@@ -13,7 +13,7 @@ from contextrl.experiments import (
     run_experiment,
     spec_to_dict,
 )
-from contextrl.experiments.protocols import REGIONS, region_of, train_test_contexts
+from contextrl.experiments.train_test import REGIONS, region_of, train_test_contexts
 
 BAD_SPECS = [
     ({"protocol": "nope"}, "unknown protocol 'nope'"),
@@ -70,21 +70,32 @@ def test_distribution_strings_and_aliases():
     assert lengths.min() >= 0.3 and lengths.max() <= 0.6 and np.unique(lengths).size > 1
 
 
-def test_sensitivity_scales_each_feature_and_skips_out_of_bounds():
+def test_sensitivity_scales_each_feature_with_one_default_context():
     spec = parse_spec(
-        {
-            "protocol": "sensitivity",
-            "features": ["length", "masspole"],
-            "magnitudes": [0.5, 2.0, 20.0],
-        }
+        {"protocol": "sensitivity", "features": ["length", "masspole"], "magnitudes": [0.5, 1, 2]}
     )
     plan = expand(spec)
     scaled = plan.sets["scaled"]
-    # length: 0.25, 1.0, 10 (> bound 5, skipped); masspole: 0.05, 0.2, 2.0 (> bound 1, skipped)
-    assert scaled.labels["feature"] == ["length", "length", "masspole", "masspole"]
-    np.testing.assert_allclose(np.asarray(scaled.contexts.length), [0.25, 1.0, 0.5, 0.5])
-    np.testing.assert_allclose(np.asarray(scaled.contexts.masspole), [0.1, 0.1, 0.05, 0.2])
+    # the default context once (A = 1 for every feature), then A = 0.5 and 2 per feature
+    assert scaled.labels["feature"] == ["(default)", "length", "length", "masspole", "masspole"]
+    assert scaled.labels["magnitude"] == [1.0, 0.5, 2.0, 0.5, 2.0]
+    np.testing.assert_allclose(np.asarray(scaled.contexts.length), [0.5, 0.25, 1.0, 0.5, 0.5])
+    np.testing.assert_allclose(np.asarray(scaled.contexts.masspole), [0.1, 0.1, 0.1, 0.05, 0.2])
     assert [t.train_set for t in plan.trials] == ["default"] * spec.seeds
+
+
+def test_sensitivity_refuses_magnitudes_it_would_drop():
+    # length 0.5 x 20 = 10 > bound 5: a named feature never silently loses a magnitude
+    with pytest.raises(SpecError, match=r"A=20 gives length = 10, outside its bounds \[0.05, 5\]"):
+        parse_spec({"protocol": "sensitivity", "features": ["length"], "magnitudes": [0.5, 20.0]})
+    # with every feature, a magnitude is refused only when no feature can take it...
+    with pytest.raises(SpecError, match=r"\[1000\] put every feature outside its bounds"):
+        parse_spec({"protocol": "sensitivity", "magnitudes": [0.5, 1000]})
+    # ...and the pairs left out are listed in the report
+    spec = parse_spec({"protocol": "sensitivity", "magnitudes": [0.5, 10.0]})
+    kept, skipped = spec.scaled_values()
+    assert skipped == ["initial_state_lower at A=10", "initial_state_upper at A=10"]
+    assert ("length", 10.0, 5.0) in kept
 
 
 def test_optimality_gap_plan_pairs_each_specialist_with_its_context():
@@ -145,14 +156,18 @@ def test_example_specs_are_valid():
         assert spec.protocol in file.stem.replace("-", "_") or spec.protocol == "tabular"
 
 
-def test_host_environment_is_refused():
+def test_agent_without_a_host_loop_is_refused_on_a_host_environment():
     import contextrl as crl
+    from contextrl.agents import Agent, ppo, register_agent
 
     host = [i for i in crl.registered() if crl.spec(i).host]
     if not host:
         pytest.skip("no host environment registered (dm_control not installed)")
-    with pytest.raises(SpecError, match="host environment"):
-        prepare({"protocol": "visibility", "env": host[0]})
+    register_agent(
+        Agent("jax_only_ppo", ppo.PPOConfig, ppo.make_train, ppo.make_policy), replace=True
+    )
+    with pytest.raises(SpecError, match="jax_only_ppo agent has no host training loop.*'ppo'"):
+        prepare({"protocol": "visibility", "env": host[0], "agent": "jax_only_ppo"})
 
 
 def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):

@@ -1,10 +1,11 @@
-"""Exact solutions of tabular cMDPs: the paper's 3-state example and the theorem on conflict states."""
+"""Tabular cMDPs: exact deterministic gaps, stochastic gap bounds, the theorem on conflict states."""
 
 import numpy as np
 import pytest
 
 from contextrl.experiments.tabular import (
     TabularCMDP,
+    mirrored_cmdp,
     policy_values,
     random_cmdp,
     solve,
@@ -20,8 +21,21 @@ def test_three_state_example_gap_is_exact():
     # a0 everywhere earns 10, 1, 1; a1 earns 1, 10, 10: the best oblivious choice is a1 in S0
     assert solution.oblivious_policy[0] == 1
     np.testing.assert_allclose(solution.oblivious_returns, [1.0, 10.0, 10.0])
-    assert solution.optimality_gap == pytest.approx(3.0)
+    assert solution.deterministic_gap == pytest.approx(3.0)
+    # mixing p of a0 earns (21 − 9p)/3 on average: linear, so no stochastic policy beats a1
+    assert solution.stochastic_gap_bound == pytest.approx(3.0, abs=1e-4)
     assert solution.conflict_states == (0,)
+
+
+def test_stochastic_oblivious_policy_beats_every_deterministic_one():
+    solution = solve(mirrored_cmdp(0.9))
+    np.testing.assert_allclose(solution.optimal_returns, [1.0, 1.0])
+    assert solution.deterministic_gap == pytest.approx(0.5)  # one context solved, one never
+    # by hand: a coin flip in S0 earns V = ½ + ½·0.9·V, V = 0.5 / 0.55 in both contexts
+    coin = 0.5 / (1 - 0.5 * 0.9)
+    np.testing.assert_allclose(solution.stochastic_returns, [coin, coin], atol=1e-4)
+    np.testing.assert_allclose(solution.stochastic_policy[0], [0.5, 0.5], atol=1e-2)
+    assert solution.stochastic_gap_bound == pytest.approx(1 - coin, abs=1e-4)
 
 
 def test_identical_contexts_have_no_gap_and_no_conflict():
@@ -30,7 +44,8 @@ def test_identical_contexts_have_no_gap_and_no_conflict():
         np.repeat(base.transitions[:1], 3, 0), np.repeat(base.rewards[:1], 3, 0), discount=0.9
     )
     solution = solve(same)
-    assert solution.optimality_gap == pytest.approx(0.0, abs=1e-9)
+    assert solution.deterministic_gap == pytest.approx(0.0, abs=1e-9)
+    assert solution.stochastic_gap_bound == pytest.approx(0.0, abs=1e-9)
     assert solution.conflict_states == ()
 
 
@@ -40,8 +55,8 @@ def test_gap_implies_conflict_on_random_cmdps():
         solution = solve(
             random_cmdp(rng, contexts=3, states=4, actions=2, discount=0.9, name=str(i))
         )
-        assert solution.optimality_gap >= -1e-9
-        if solution.optimality_gap > 1e-6:
+        assert solution.deterministic_gap >= solution.stochastic_gap_bound >= -1e-9
+        if solution.stochastic_gap_bound > 1e-6:
             assert solution.conflict_states  # the theorem: a gap needs a conflict state
 
 

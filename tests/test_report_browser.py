@@ -73,6 +73,11 @@ def every_plot() -> list[Figure]:
         ),
         "bars": plots.bars({"one": 1.0, "two": 3.0}, ylabel="gap"),
         "scatter": plots.scatter([1, 2, 3], {"gap": [0.5, -1, 2]}, xlabel="length", ylabel="gap"),
+        "return_vs_feature": plots.return_vs_feature(
+            {"hidden": ([0.1, 0.5, 1.0], rng.normal(size=(3, 3)))},
+            xlabel="length",
+            train_range=(0.25, 0.75),
+        ),
     }
     return [Figure(name, plots.to_png(figure), f"the {name} plot") for name, figure in made.items()]
 

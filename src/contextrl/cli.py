@@ -8,6 +8,7 @@ from the feature declarations, so the CLI, the docs and the code cannot disagree
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -231,7 +232,7 @@ def record(
     from contextrl.render import renderer_for, union_box
     from contextrl.render.animation import side_by_side
 
-    envs = [ContextualGymEnv(env_id, contexts=c, render_mode="rgb_array") for c in contexts]
+    envs = [ContextualGymEnv(env_id, contexts=c or None, render_mode="rgb_array") for c in contexts]
     if not crl.spec(env_id).host:
         renderer = renderer_for(envs[0].contextrl_env)
         box = union_box(
@@ -263,24 +264,31 @@ def record(
 
 
 def run_render(args: argparse.Namespace) -> int:
-    from contextrl.render.animation import write_gif
+    from contextrl.gymnasium.env import render_fps
+    from contextrl.render.animation import animation_format, write_animation
 
-    space = crl.spec(args.env).factory().context_space
+    animation_format(args.out)  # an unknown suffix is refused before anything renders
+    env_id = crl.spec(args.env).id
+    space = crl.spec(env_id).factory().context_space
     base = parse_assignments(args.context)
-    if args.grid:
-        name, values = parse_grid(args.grid)
-        contexts = [{**base, name: value} for value in values]
-    else:
-        contexts = [base]
+    grids = [parse_grid(text) for text in args.grid]
+    names = [name for name, _ in grids]
+    if len(set(names)) != len(names):
+        raise ContextError(f"--grid: {names} names a feature twice; give each feature once")
+    # several --grid flags combine: one panel per combination of their values
+    contexts = [
+        {**base, **dict(zip(names, values, strict=True))}
+        for values in itertools.product(*(values for _, values in grids))
+    ]
     for context in contexts:
         space.make(**context)  # validate every panel before rendering any
     if args.steps < 0:
         raise ContextError(f"--steps must be >= 0, got {args.steps}")
-    frames = record(args.env, contexts, args.steps, args.seed)
-    from contextrl.gymnasium.env import render_fps
-
-    fps = args.fps or render_fps(crl.spec(args.env).factory())
-    path = write_gif(frames, args.out, fps)
+    if args.fps is not None and args.fps < 1:
+        raise ContextError(f"--fps must be >= 1, got {args.fps}")
+    frames = record(env_id, contexts, args.steps, args.seed)
+    fps = args.fps or render_fps(crl.spec(env_id).factory())
+    path = write_animation(frames, args.out, fps)
     print(f"wrote {path} ({len(frames)} frames, {len(contexts)} panel(s))")
     return 0
 
@@ -298,9 +306,15 @@ def add_render(subparsers) -> None:
         help="context features (repeatable); the rest keep their defaults",
     )
     parser.add_argument(
-        "--grid", metavar="FEATURE=V1,V2,...", help="one panel per value, side by side"
+        "--grid",
+        action="append",
+        default=[],
+        metavar="FEATURE=V1,V2,...",
+        help="one panel per value, side by side (repeat for every combination of two features)",
     )
-    parser.add_argument("--out", default="render.gif", help="output GIF")
+    parser.add_argument(
+        "--out", default="render.gif", help="output: .gif (animation) or .png (first frame)"
+    )
     parser.add_argument("--steps", type=int, default=100, help="steps to animate (random actions)")
     parser.add_argument("--seed", type=int, default=0, help="seed of start states and actions")
     parser.add_argument(
@@ -313,27 +327,53 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="contextrl", description="Contextual reinforcement learning environments and tools."
     )
+    parser.add_argument(
+        "--debug", action="store_true", help="show the full traceback of an error (any position)"
+    )
     subparsers = parser.add_subparsers(dest="command", required=True)
     add_list(subparsers)
     add_describe(subparsers)
     add_docs(subparsers)
     add_render(subparsers)
     # imported here: the experiment layer loads pandas and matplotlib, which `list` does not need
-    from contextrl.experiments.commands import add_report, add_run
+    from contextrl.experiments.commands import add_eval, add_report, add_run
 
     add_run(subparsers)
     add_report(subparsers)
+    add_eval(subparsers)
     return parser
 
 
+def error_message(error: BaseException) -> str:
+    """One line for a user error: the message itself, without Python's decoration."""
+    if isinstance(error, KeyError) and error.args:
+        return str(error.args[0])
+    if isinstance(error, OSError) and error.strerror:
+        return f"{error.strerror}: {error.filename}" if error.filename else error.strerror
+    return str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+
+
+# Errors that come from what the user gave or from the machine (files, a cluster), not from a bug.
+USER_ERRORS = (ValueError, KeyError, NotImplementedError, OSError, ImportError)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``contextrl`` command; user errors print one line and exit with status 2."""
-    args = build_parser().parse_args(argv)
+    """Entry point of the ``contextrl`` command: a user error prints one line and exits with status 2
+    (``--debug`` shows the traceback instead); Ctrl-C exits with status 130."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    args = build_parser().parse_args([a for a in argv if a != "--debug"])
     try:
         return args.handler(args)
-    except (ContextError, KeyError, ValueError, NotImplementedError) as error:
-        message = error.args[0] if isinstance(error, KeyError) and error.args else error
-        print(f"contextrl {args.command}: error: {message}", file=sys.stderr)
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print(f"contextrl {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except USER_ERRORS as error:
+        if debug:
+            raise
+        print(f"contextrl {args.command}: error: {error_message(error)}", file=sys.stderr)
         return 2
 
 

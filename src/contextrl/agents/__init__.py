@@ -11,16 +11,24 @@ from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_checkpoint
 from contextrl.agents.evaluation import evaluate, evaluate_episodes
 from contextrl.agents.networks import CONTEXT_MODES, ConfigError
+from contextrl.agents.registry import Agent, get_agent, register_agent, registered_agents
+from contextrl.agents.saved import SavedPolicy, load_policy
 
 __all__ = [
+    "Agent",
+    "SavedPolicy",
     "CONTEXT_MODES",
     "ConfigError",
     "checkpoint_info",
     "evaluate",
     "evaluate_episodes",
+    "get_agent",
     "load_checkpoint",
+    "load_policy",
     "dqn",
     "ppo",
+    "register_agent",
+    "registered_agents",
     "sac",
     "save_checkpoint",
 ]

@@ -26,8 +26,21 @@ from contextrl.core.env import Env
 def check_env(env: Any, agent: str) -> None:
     """A contextrl JAX environment whose observation is not already extended by the env itself."""
     if not isinstance(env, Env):
+        from contextrl.core.host import HostEnv
+
+        if isinstance(env, HostEnv):
+            host_path = (
+                f"train it through the gymnasium vector adapter, ppo.train_gymnasium(config, "
+                f"{env.name!r}, contexts, key), or pick a JAX environment"
+                if agent == "PPO"
+                else "pick a JAX environment"
+            )
+            raise ConfigError(
+                f"{env.name} is a host environment (its simulator steps outside JAX) and this "
+                f"{agent} training loop is compiled end to end for JAX environments; {host_path}"
+            )
         raise ConfigError(
-            f"{agent} trains a contextrl JAX environment (crl.make(...)); got {type(env).__name__}"
+            f"{agent} trains a contextrl environment from crl.make(...); got a {type(env).__name__}"
         )
     if not env.obs_context.hidden:
         raise ConfigError(
@@ -95,6 +108,9 @@ class EpisodeLog:
     period_count: jax.Array
     context_sum: jax.Array  # (num_contexts,) per context id
     context_count: jax.Array
+    last_return: jax.Array  # the latest period's curve values, kept for periods where nothing ended
+    last_length: jax.Array
+    last_context_return: jax.Array  # (num_contexts,)
 
     @classmethod
     def create(cls, num_envs: int, capacity: int, num_contexts: int) -> EpisodeLog:
@@ -113,6 +129,9 @@ class EpisodeLog:
             period_count=jnp.zeros((), jnp.int32),
             context_sum=jnp.zeros((num_contexts,), jnp.float32),
             context_count=jnp.zeros((num_contexts,), jnp.int32),
+            last_return=jnp.zeros((), jnp.float32),
+            last_length=jnp.zeros((), jnp.float32),
+            last_context_return=jnp.full((num_contexts,), jnp.nan, jnp.float32),
         )
 
     def record(self, reward, done, context_id, step) -> EpisodeLog:
@@ -125,7 +144,8 @@ class EpisodeLog:
         done_f = done.astype(jnp.float32)
         num_contexts = self.context_sum.shape[0]
         context_slot = jnp.where(done & (context_id >= 0), context_id, num_contexts)
-        return EpisodeLog(
+        return dataclasses.replace(
+            self,
             running_return=jnp.where(done, 0.0, episode_return),
             running_length=jnp.where(done, 0, episode_length),
             returns=self.returns.at[slot].set(episode_return, mode="drop"),
@@ -141,21 +161,36 @@ class EpisodeLog:
         )
 
     def close_period(self) -> tuple[EpisodeLog, dict[str, jax.Array]]:
-        """This period's curve row (NaN where no episode ended) and a log with the period cleared."""
+        """This period's curve row and a log with the period cleared.
+
+        ``episode_return``/``episode_length`` average the episodes that ended in the period; when
+        none did, they repeat the last period's values, and before any episode has ended they are the
+        running (unfinished) episodes' mean so far, a lower bound for non-negative rewards: never NaN.
+        ``context_return`` per context id repeats its last value likewise and is NaN (masked) only
+        until that context's first episode ends.
+        """
         count = self.period_count
+        started = self.finished > 0
+        fallback_return = jnp.where(started, self.last_return, self.running_return.mean())
+        fallback_length = jnp.where(
+            started, self.last_length, self.running_length.astype(jnp.float32).mean()
+        )
+        episode_return = jnp.where(
+            count > 0, self.period_sum / jnp.maximum(count, 1), fallback_return
+        )
+        episode_length = jnp.where(
+            count > 0, self.period_length_sum / jnp.maximum(count, 1), fallback_length
+        )
+        context_return = jnp.where(
+            self.context_count > 0,
+            self.context_sum / jnp.maximum(self.context_count, 1),
+            self.last_context_return,
+        )
         row = {
-            "episode_return": jnp.where(
-                count > 0, self.period_sum / jnp.maximum(count, 1), jnp.nan
-            ),
-            "episode_length": jnp.where(
-                count > 0, self.period_length_sum / jnp.maximum(count, 1), jnp.nan
-            ),
+            "episode_return": episode_return,
+            "episode_length": episode_length,
             "episodes_finished": count,
-            "context_return": jnp.where(
-                self.context_count > 0,
-                self.context_sum / jnp.maximum(self.context_count, 1),
-                jnp.nan,
-            ),
+            "context_return": context_return,
         }
         cleared = dataclasses.replace(
             self,
@@ -164,6 +199,9 @@ class EpisodeLog:
             period_count=jnp.zeros_like(self.period_count),
             context_sum=jnp.zeros_like(self.context_sum),
             context_count=jnp.zeros_like(self.context_count),
+            last_return=jnp.where(count > 0, episode_return, self.last_return),
+            last_length=jnp.where(count > 0, episode_length, self.last_length),
+            last_context_return=context_return,
         )
         return cleared, row
 
@@ -187,8 +225,8 @@ class TrainResult:
     """Trained parameters and training metrics (arrays; a leading axis per vmapped seed or agent).
 
     ``metrics`` holds one row per logging period (an update for PPO): ``step`` (environment steps so
-    far), ``episode_return``/``episode_length`` (mean over episodes that ended in the period, NaN if
-    none), ``episodes_finished``, ``context_return`` (per context id of the training set), the
+    far), ``episode_return``/``episode_length`` (mean over episodes that ended in the period; the
+    previous period's value when none did, see :meth:`EpisodeLog.close_period`), ``episodes_finished``, ``context_return`` (per context id of the training set), the
     algorithm's losses; and ``episodes``, the most recent individual episodes: ``return``, ``length``,
     ``context_id`` (−1: resampled), ``step`` at which it ended, ``total`` number finished.
     """

@@ -19,6 +19,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 
 from contextrl.agents.common import (
@@ -225,11 +226,18 @@ def _networks(config: DQNConfig, env, train_contexts) -> _Networks:
     check_env(env, "DQN")
     if not isinstance(env.action_space, Discrete):
         raise ConfigError(f"DQN/C51 needs a Discrete action space; {env.name} has a continuous one")
-    obs_shape = env.observation_space.shape
-    if len(obs_shape) != 1:
-        raise ConfigError(f"DQN needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
     context = context_input(config.context_obs, env.context_space, train_contexts)
-    num_actions = env.action_space.n
+    return _build_networks(config, env.name, env.action_space, env.observation_space, context)
+
+
+def _build_networks(config: DQNConfig, name: str, action_space, obs_space, context) -> _Networks:
+    """The Q-network for these spaces (contextrl's or gymnasium's)."""
+    if not hasattr(action_space, "n"):
+        raise ConfigError(f"DQN/C51 needs a Discrete action space; {name} has {action_space!r}")
+    obs_shape = obs_space.shape
+    if len(obs_shape) != 1:
+        raise ConfigError(f"DQN needs a flat (1-D) observation, {name} gives shape {obs_shape}")
+    num_actions = int(action_space.n)
     outputs = num_actions * (config.num_atoms if config.distributional else 1)
     q = ConditionedMLP(
         obs_shape[0],
@@ -261,24 +269,14 @@ def init_params(config: DQNConfig, env, train_contexts: Any, key) -> dict:
     return _networks(config, env, train_contexts).q.init(key)
 
 
-def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
-    space = env.context_space
-    num_envs = config.num_envs
-    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+def _learner(config: DQNConfig, nets: _Networks):
+    """The optimiser, ``act(params, obs, context, key, epsilon)``, ``learn(params, target_params,
+    opt_state, replay, key, update_index)`` (one gradient step, then the target update) and the
+    exploration schedule: the algorithm, shared by the compiled loop and the host loop."""
     optimizer = optax.chain(
         optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate)
     )
     decay_steps = max(1, int(config.exploration_fraction * config.num_updates))
-    warmup_transitions = config.warmup_steps * num_envs
-    progress = Progress(
-        "C51" if config.distributional else "DQN",
-        warmup_transitions + config.num_updates * config.train_frequency * num_envs,
-        config.progress_every,
-    )
 
     def loss_fn(params, target_params, batch):
         q, logits = _q_values(nets, params, batch["obs"], batch["context"])
@@ -312,10 +310,49 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
         return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def learn(params, target_params, opt_state, replay, key, update_index):
+        batch = replay.sample(key, config.batch_size, config.n_step, config.gamma)
+        loss, grads = jax.value_and_grad(loss_fn)(params, target_params, batch)
+        updates, opt_state = optimizer.update(grads, opt_state, params)
+        params = optax.apply_updates(params, updates)
+        refresh = (update_index + 1) % config.target_update_interval == 0
+        target_params = jax.tree_util.tree_map(
+            lambda online, target: jnp.where(
+                refresh, config.tau * online + (1 - config.tau) * target, target
+            ),
+            params,
+            target_params,
+        )
+        return params, target_params, opt_state, loss
+
+    def epsilon_at(update_index):
+        fraction = jnp.minimum(update_index / decay_steps, 1.0)
+        return config.start_epsilon + fraction * (config.end_epsilon - config.start_epsilon)
+
+    return optimizer, act, learn, epsilon_at
+
+
+def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs = config.num_envs
+    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+    optimizer, act, learn, epsilon_at = _learner(config, nets)
+    warmup_transitions = config.warmup_steps * num_envs
+    progress = Progress(
+        "C51" if config.distributional else "DQN",
+        warmup_transitions + config.num_updates * config.train_frequency * num_envs,
+        config.progress_every,
+    )
+
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params = nets.q.init(init_key)
+        if params is None:  # given params: continue training them (population-based tuning)
+            params = nets.q.init(init_key)
         opt_state = optimizer.init(params)
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
@@ -369,8 +406,7 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
 
         def update(carry, update_index):
             params, target_params, opt_state, env_state, obs, replay, log, step, key = carry
-            fraction = jnp.minimum(update_index / decay_steps, 1.0)
-            epsilon = config.start_epsilon + fraction * (config.end_epsilon - config.start_epsilon)
+            epsilon = epsilon_at(update_index)
 
             def policy_step(carry, _):
                 def greedy(obs, context_vector, key):
@@ -382,17 +418,8 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
                 policy_step, (env_state, obs, replay, log, step, key), None, config.train_frequency
             )
             key, sample_key = jax.random.split(key)
-            batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
-            loss, grads = jax.value_and_grad(loss_fn)(params, target_params, batch)
-            updates, opt_state = optimizer.update(grads, opt_state, params)
-            params = optax.apply_updates(params, updates)
-            refresh = (update_index + 1) % config.target_update_interval == 0
-            target_params = jax.tree_util.tree_map(
-                lambda online, target: jnp.where(
-                    refresh, config.tau * online + (1 - config.tau) * target, target
-                ),
-                params,
-                target_params,
+            params, target_params, opt_state, loss = learn(
+                params, target_params, opt_state, replay, sample_key, update_index
             )
             carry = (params, target_params, opt_state, env_state, obs, replay, log, step, key)
             return carry, loss
@@ -414,6 +441,121 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         return TrainResult(params, metrics)
 
     return train
+
+
+def train_gymnasium(
+    config: DQNConfig,
+    env_id: str,
+    train_contexts: Any,
+    key,
+    *,
+    seed: int = 0,
+    vectorization: str = "sync",
+    **env_kwargs: Any,
+) -> TrainResult:
+    """DQN/C51 on the host collector (:class:`contextrl.agents.host.HostCollector`): for host
+    environments (RNA design, Box2D…) or any registered id, with the schedule of :func:`make_train`
+    (warm-up, then ``train_frequency`` vector steps per gradient step). Returns the same
+    ``TrainResult``."""
+    from contextrl.agents.host import HostCollector
+
+    config.validate()
+    if config.context_selector == "static" or not isinstance(env_id, str):
+        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
+    with HostCollector(
+        env_id,
+        config.num_envs,
+        train_contexts,
+        config.context_obs,
+        selector=config.context_selector,
+        seed=seed,
+        vectorization=vectorization,
+        **env_kwargs,
+    ) as collector:
+        return _train_host(config, collector, key)
+
+
+def make_host_policy(config: DQNConfig, action_space, obs_space, context) -> Callable:
+    """``act(params, obs, context_input, key) -> greedy actions`` for a batch of host observations;
+    ``context`` is the training ContextInput."""
+    nets = _build_networks(config, "the environment", action_space, obs_space, context)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        return jnp.argmax(_q_values(nets, params, obs, context_vector)[0], axis=-1)
+
+    return act
+
+
+def _train_host(config: DQNConfig, collector, key) -> TrainResult:
+    nets = _build_networks(
+        config,
+        "the environment",
+        collector.single_action_space,
+        collector.single_observation_space,
+        collector.context_input,
+    )
+    optimizer, act, learn, epsilon_at = _learner(config, nets)
+    num_envs = config.num_envs
+    key, init_key = jax.random.split(key)
+    params = nets.q.init(init_key)
+    target_params, opt_state = params, optimizer.init(params)
+    replay = Replay.create(
+        max(config.buffer_size // num_envs, config.n_step + 1),
+        {
+            "obs": collector.obs,
+            "context": collector.context,
+            "action": np.zeros((num_envs,), np.int32),
+            "reward": np.zeros((num_envs,), np.float32),
+            "terminated": np.zeros((num_envs,), bool),
+            "done": np.zeros((num_envs,), bool),
+            "next_obs": collector.obs,
+        },
+    )
+    replay = jax.tree_util.tree_map(jnp.copy, replay)  # own buffers: the loop donates them
+    add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
+    learn = jax.jit(learn)
+    explore = jax.jit(act)
+
+    def collect(action: np.ndarray, replay):
+        obs, context_vector = collector.obs, collector.context
+        step = collector.step(action)
+        transition = {
+            "obs": obs,
+            "context": context_vector,
+            "action": action.astype(np.int32),
+            "reward": step.reward,
+            "terminated": step.terminated,
+            "done": step.done,
+            "next_obs": step.final_obs,
+        }
+        return add(replay, transition)
+
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
+    for _ in range(config.warmup_steps):
+        replay = collect(rng.integers(0, nets.num_actions, num_envs), replay)
+    collector.close_period()  # warm-up episodes stay in the episode list, not the curve
+    rows, update_index = [], 0
+    for _ in range(config.num_rows):
+        losses = []
+        for _ in range(config.updates_per_row):
+            epsilon = epsilon_at(update_index)
+            for _ in range(config.train_frequency):
+                key, action_key = jax.random.split(key)
+                action = explore(params, collector.obs, collector.context, action_key, epsilon)
+                replay = collect(np.asarray(action), replay)
+            key, sample_key = jax.random.split(key)
+            params, target_params, opt_state, loss = learn(
+                params, target_params, opt_state, replay, sample_key, update_index
+            )
+            losses.append(loss)
+            update_index += 1
+        row = collector.close_period()
+        row["loss"] = float(np.mean(losses))
+        rows.append(row)
+    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
+    metrics["episodes"] = collector.episodes(config.episode_log_size)
+    return TrainResult(params, metrics)
 
 
 def make_policy(

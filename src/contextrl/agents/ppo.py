@@ -6,9 +6,9 @@
     results = jax.jit(jax.vmap(train))(keys)              # many seeds in one call
     specialists = jax.jit(jax.vmap(train))(keys, sets)    # one agent per context set (leading axis)
 
-``train(key, contexts=None)``: with ``contexts`` omitted the agent trains on the ``train_contexts``
-given to ``make_train``; a batch of the same shape trains on that set instead, which is how ``vmap``
-trains specialists. Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
+``train(key, contexts=None, params=None)``: with ``contexts`` omitted the agent trains on the
+``train_contexts`` given to ``make_train``; a batch of the same shape trains on that set instead, which
+is how ``vmap`` trains specialists. ``params`` continues training given parameters (fresh optimiser). Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
 the action bounds when stepping). Episodes cut by the time limit bootstrap from the value of the final
 observation instead of counting as failures.
 """
@@ -16,7 +16,7 @@ observation instead of counting as failures.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -42,7 +42,6 @@ from contextrl.agents.networks import (
     check_positive,
     context_input,
 )
-from contextrl.context.distributions import DISTRIBUTIONS
 from contextrl.core.spaces import Box, Discrete
 
 
@@ -327,10 +326,11 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
     optimizer, value, learn = _learner(config, nets)
     progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params = _init_params(nets, config, init_key)
+        if params is None:  # given params: continue training them (population-based tuning)
+            params = _init_params(nets, config, init_key)
         opt_state = optimizer.init(params)
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
@@ -385,48 +385,41 @@ def train_gymnasium(
     vectorization: str = "sync",
     **env_kwargs: Any,
 ) -> TrainResult:
-    """PPO through the gymnasium vector adapter: for host environments (dm_control…) or any id.
+    """PPO on the host collector (:class:`contextrl.agents.host.HostCollector`): for host environments
+    (dm_control…) or any registered id.
 
-    The environment steps on the host (``contextrl.gymnasium.make_vector_env`` with ``num_envs`` copies
-    taking contexts from ``train_contexts`` by ``config.context_selector``); acting and every update
-    are compiled. The context input comes from ``info["context"]`` of each step, normalised by the
-    feature bounds as in :func:`make_train`. Returns the same ``TrainResult``; slower than the JAX path.
+    ``num_envs`` copies take contexts from ``train_contexts`` by ``config.context_selector``; acting
+    and every update are compiled, the environment steps on the host. Returns the same
+    ``TrainResult`` as :func:`make_train`; slower than the JAX path.
     """
-    from contextrl.gymnasium.vector import make_vector_env
+    from contextrl.agents.host import HostCollector
 
+    config.validate()
     if config.context_selector == "static" or not isinstance(env_id, str):
         raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
-    resampled = isinstance(train_contexts, Mapping) and any(
-        isinstance(v, DISTRIBUTIONS) for v in train_contexts.values()
-    )
-    selector = {} if resampled else {"context_selector": config.context_selector}
-    envs = make_vector_env(
+    with HostCollector(
         env_id,
-        num_envs=config.num_envs,
+        config.num_envs,
+        train_contexts,
+        config.context_obs,
+        selector=config.context_selector,
+        seed=seed,
         vectorization=vectorization,
-        contexts=train_contexts,
-        **selector,
         **env_kwargs,
-    )
-    try:
-        return _train_host(config, envs, train_contexts, key, seed)
-    finally:
-        envs.close()
+    ) as collector:
+        return _train_host(config, collector, key)
 
 
-def _train_host(config: PPOConfig, envs, train_contexts, key, seed: int) -> TrainResult:
-    config.validate()
-    space = getattr(envs, "context_space", None) or envs.get_attr("context_space")[0]
-    action_space = envs.single_action_space
+def _host_networks(config: PPOConfig, action_space, obs_space, context) -> _Networks:
+    """Actor and critic for gymnasium spaces (the host path)."""
     if hasattr(action_space, "n"):
         discrete, action_size, low, high = True, int(action_space.n), None, None
     else:
         discrete, action_size = False, int(action_space.shape[0])
         low, high = action_space.low, action_space.high
-    obs_size = int(np.prod(envs.single_observation_space.shape))
-    context = context_input(config.context_obs, space, train_contexts)
+    obs_size = int(np.prod(obs_space.shape))
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
-    nets = _Networks(
+    return _Networks(
         ConditionedMLP(obs_size, action_size, out_scale=0.01, **common),
         ConditionedMLP(obs_size, 1, out_scale=1.0, **common),
         context,
@@ -434,21 +427,29 @@ def _train_host(config: PPOConfig, envs, train_contexts, key, seed: int) -> Trai
         low,
         high,
     )
-    optimizer, value, learn = _learner(config, nets)
-    num_envs, num_steps = config.num_envs, config.num_steps
-    lower = np.asarray(context.lower, np.float32)
-    span = np.maximum(np.asarray(context.upper, np.float32) - lower, 1e-8)
-    names = [space.names[i] for i in context.indices]
 
-    def context_vectors(info) -> np.ndarray:
-        columns = []
-        for name in names:
-            values = np.asarray(info["context"][name])
-            if values.dtype == object:  # categorical features arrive as choice names
-                values = np.array([space.features[name].choices.index(v) for v in values])
-            columns.append(values.astype(np.float32))
-        stacked = np.stack(columns, axis=-1) if columns else np.zeros((num_envs, 0), np.float32)
-        return np.clip((stacked - lower) / span, 0.0, 1.0)
+
+def make_host_policy(config: PPOConfig, action_space, obs_space, context) -> Callable:
+    """``act(params, obs, context_input, key) -> env actions`` for a batch of host observations
+    (the most likely action or the Gaussian mean); ``context`` is the training ContextInput."""
+    nets = _host_networks(config, action_space, obs_space, context)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        head, _ = _policy_outputs(nets, params, obs, context_vector)
+        return _env_action(nets, jnp.argmax(head, axis=-1) if nets.discrete else head)
+
+    return act
+
+
+def _train_host(config: PPOConfig, collector, key) -> TrainResult:
+    nets = _host_networks(
+        config,
+        collector.single_action_space,
+        collector.single_observation_space,
+        collector.context_input,
+    )
+    optimizer, value, learn = _learner(config, nets)
 
     @jax.jit
     def act(params, obs, context_vector, key):
@@ -460,77 +461,40 @@ def _train_host(config: PPOConfig, envs, train_contexts, key, seed: int) -> Trai
     key, init_key = jax.random.split(key)
     params = _init_params(nets, config, init_key)
     opt_state = optimizer.init(params)
-    obs, info = envs.reset(seed=seed)
-    obs, context_vector = np.asarray(obs, np.float32), context_vectors(info)
-    running_return, running_length = np.zeros(num_envs), np.zeros(num_envs, np.int64)
-    episodes: list[tuple[float, int, int, int]] = []
     rows = []
-    step = 0
+    total = config.num_updates * config.num_envs * config.num_steps
     for _ in range(config.num_updates):
         rollout = []
-        finished_before = len(episodes)
-        for _ in range(num_steps):
+        for _ in range(config.num_steps):
             key, action_key = jax.random.split(key)
+            obs, context_vector = collector.obs, collector.context
             action, env_action, log_prob, state_value = act(params, obs, context_vector, action_key)
-            next_obs, reward, terminated, truncated, info = envs.step(np.asarray(env_action))
-            step += num_envs
-            done = np.asarray(terminated | truncated)
-            reward = np.asarray(reward, np.float32)
-            bootstrap = np.zeros(num_envs, np.float32)
-            cut = np.asarray(truncated & ~terminated)
+            step = collector.step(np.asarray(env_action))
+            # A time-limit cut is not a failure: bootstrap from the final observation's value.
+            cut = step.truncated & ~step.terminated
+            bootstrap = np.zeros(collector.num_envs, np.float32)
             if cut.any():
-                final = np.stack(
-                    [info["final_obs"][i] if cut[i] else obs[i] for i in range(num_envs)]
-                ).astype(np.float32)
-                bootstrap = np.asarray(value_of(params, final, context_vector)) * cut
-            rollout.append(
-                (
-                    obs,
-                    context_vector,
-                    action,
-                    log_prob,
-                    state_value,
-                    reward + config.gamma * bootstrap,
-                    done,
-                )
-            )
-            running_return += reward
-            running_length += 1
-            for i in np.flatnonzero(done):
-                context_id = int(info["final_info"]["context_id"][i])
-                episodes.append((running_return[i], running_length[i], context_id, step))
-            running_return[done], running_length[done] = 0.0, 0
-            obs, context_vector = np.asarray(next_obs, np.float32), context_vectors(info)
+                bootstrap = np.asarray(value_of(params, step.final_obs, context_vector)) * cut
+            reward = step.reward + config.gamma * bootstrap
+            rollout.append((obs, context_vector, action, log_prob, state_value, reward, step.done))
         stacked = tuple(np.stack(column) for column in zip(*rollout, strict=True))
-        last_value = value_of(params, obs, context_vector)
+        last_value = value_of(params, collector.obs, collector.context)
         params, opt_state, key, losses = learn(params, opt_state, stacked, last_value, key)
-        ended = episodes[finished_before:]
-        rows.append(
-            {
-                "step": step,
-                "episode_return": np.mean([e[0] for e in ended]) if ended else np.nan,
-                "episode_length": np.mean([e[1] for e in ended]) if ended else np.nan,
-                "episodes_finished": len(ended),
-                "actor_loss": float(losses[0].mean()),
-                "value_loss": float(losses[1].mean()),
-                "entropy": float(losses[2].mean()),
-            }
+        row = collector.close_period()
+        row.update(
+            actor_loss=float(losses[0].mean()),
+            value_loss=float(losses[1].mean()),
+            entropy=float(losses[2].mean()),
         )
+        rows.append(row)
         if config.progress_every and len(rows) % config.progress_every == 0:
             print(
-                f"[PPO host] step {step:>10,}/{config.num_updates * num_envs * num_steps:,}  "
-                f"recent return {rows[-1]['episode_return']:9.2f}",
+                f"[PPO host] step {row['step']:>10,}/{total:,}  "
+                f"recent return {row['episode_return']:9.2f}",
                 flush=True,
             )
     metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
-    recent = episodes[-config.episode_log_size :]
-    metrics["episodes"] = {
-        "return": np.asarray([e[0] for e in recent], np.float32),
-        "length": np.asarray([e[1] for e in recent], np.int32),
-        "context_id": np.asarray([e[2] for e in recent], np.int32),
-        "step": np.asarray([e[3] for e in recent], np.int32),
-        "total": len(episodes),
-    }
+    metrics["episodes"] = collector.episodes(config.episode_log_size)
     return TrainResult(params, metrics)
 
 

@@ -6,7 +6,7 @@ entropy tuning); the whole run one JAX function.
     train = sac.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
 
-``train(key, contexts=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
+``train(key, contexts=None, params=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
 actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
 followed by one actor (and temperature) update; each logging period is one metrics row.
 """
@@ -14,6 +14,7 @@ followed by one actor (and temperature) update; each logging period is one metri
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -41,7 +42,6 @@ from contextrl.agents.networks import (
     context_input,
 )
 from contextrl.agents.replay import Replay
-from contextrl.core.spaces import Box
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
@@ -144,15 +144,14 @@ class SACConfig:
         return max(remaining, 0) // per_row
 
 
+# The paper's SAC environments (appendix table); all three share one setting.
+PAPER_SAC = {"Pendulum": {}, "DmcWalker": {}, "DmcQuadruped": {}}
+
+
 def paper_config(env_name: str, **overrides: Any) -> SACConfig:
     """The paper's SAC settings (appendix table) for Pendulum, DmcWalker or DmcQuadruped."""
-    settings = {
-        "Pendulum": {},
-        "DmcWalker": {},
-        "DmcQuadruped": {},
-    }
-    if env_name not in settings:
-        raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(settings)}")
+    if env_name not in PAPER_SAC:
+        raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(PAPER_SAC)}")
     base = dict(
         n_step=5,
         gamma=0.9,
@@ -167,7 +166,7 @@ def paper_config(env_name: str, **overrides: Any) -> SACConfig:
         buffer_size=100_000,
         hidden_sizes=(256, 256),
     )
-    return SACConfig(**{**base, **settings[env_name], **overrides})
+    return SACConfig(**{**base, **PAPER_SAC[env_name], **overrides})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,22 +189,25 @@ class _Networks:
 def _networks(config: SACConfig, env, train_contexts) -> _Networks:
     config.validate()
     check_env(env, "SAC")
-    space = env.action_space
-    if not isinstance(space, Box) or len(space.shape) != 1:
-        raise ConfigError(f"SAC needs a 1-D Box action space; {env.name} has {space!r}")
-    if not (np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))):
-        raise ConfigError(
-            f"SAC squashes actions into bounds; {env.name}'s action bounds are infinite"
-        )
-    obs_shape = env.observation_space.shape
-    if len(obs_shape) != 1:
-        raise ConfigError(f"SAC needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
     context = context_input(config.context_obs, env.context_space, train_contexts)
+    return _build_networks(config, env.name, env.action_space, env.observation_space, context)
+
+
+def _build_networks(config: SACConfig, name: str, action_space, obs_space, context) -> _Networks:
+    """Actor and critics for these spaces (contextrl's or gymnasium's Box)."""
+    low, high = getattr(action_space, "low", None), getattr(action_space, "high", None)
+    if low is None or len(action_space.shape) != 1 or hasattr(action_space, "n"):
+        raise ConfigError(f"SAC needs a 1-D Box action space; {name} has {action_space!r}")
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+        raise ConfigError(f"SAC squashes actions into bounds; {name}'s action bounds are infinite")
+    obs_shape = obs_space.shape
+    if len(obs_shape) != 1:
+        raise ConfigError(f"SAC needs a flat (1-D) observation, {name} gives shape {obs_shape}")
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
-    action_size = space.shape[0]
+    action_size = action_space.shape[0]
     actor = ConditionedMLP(obs_shape[0], 2 * action_size, out_scale=0.01, **common)
     critic = ConditionedMLP(obs_shape[0] + action_size, 1, out_scale=1.0, **common)
-    return _Networks(actor, critic, context, space.low, space.high)
+    return _Networks(actor, critic, context, np.asarray(low), np.asarray(high))
 
 
 def _actor_head(nets: _Networks, params, obs, context_vector):
@@ -252,24 +254,23 @@ def _init(nets: _Networks, config: SACConfig, key) -> dict:
     }
 
 
-def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
-    space = env.context_space
-    num_envs = config.num_envs
-    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+def _learner(config: SACConfig, nets: _Networks):
+    """``init(key) -> (params, target_critic, opt_states)``, ``critic_update(params, target_critic,
+    opt_states, batch, key)`` and ``actor_update(params, opt_states, batch, key)``: the algorithm,
+    shared by the compiled loop and the host loop."""
     actor_optimizer = optax.adam(config.policy_lr)
     critic_optimizer = optax.adam(config.q_lr)
     alpha_optimizer = optax.adam(config.policy_lr)
     target_entropy = -float(nets.action_size)
-    progress = Progress(
-        "SAC",
-        (config.warmup_steps + config.num_rows * config.updates_per_row * config.policy_frequency)
-        * num_envs,
-        config.progress_every,
-    )
+
+    def init(key, params=None):
+        params = _init(nets, config, key) if params is None else params
+        opt_states = (
+            actor_optimizer.init(params["actor"]),
+            critic_optimizer.init(params["critic"]),
+            alpha_optimizer.init(params["log_alpha"]),
+        )
+        return params, params["critic"], opt_states
 
     def critic_loss(critic_params, target_critic, actor_params, log_alpha, batch, key):
         next_action, next_log_prob = _sample_action(
@@ -288,16 +289,54 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         q = _twin_q(nets, critic_params, batch["obs"], batch["context"], action).min(axis=0)
         return jnp.mean(jnp.exp(log_alpha) * log_prob - q), log_prob
 
-    def train(key, contexts: Any = None) -> TrainResult:
+    def critic_update(params, target_critic, opt_states, batch, key):
+        loss, grads = jax.value_and_grad(critic_loss)(
+            params["critic"], target_critic, params["actor"], params["log_alpha"], batch, key
+        )
+        updates, critic_state = critic_optimizer.update(grads, opt_states[1], params["critic"])
+        params = {**params, "critic": optax.apply_updates(params["critic"], updates)}
+        target_critic = optax.incremental_update(params["critic"], target_critic, config.tau)
+        return params, target_critic, (opt_states[0], critic_state, opt_states[2]), loss
+
+    def actor_update(params, opt_states, batch, key):
+        (loss, log_prob), grads = jax.value_and_grad(actor_loss, has_aux=True)(
+            params["actor"], params["critic"], params["log_alpha"], batch, key
+        )
+        updates, actor_state = actor_optimizer.update(grads, opt_states[0], params["actor"])
+        params = {**params, "actor": optax.apply_updates(params["actor"], updates)}
+        alpha_state = opt_states[2]
+        if config.autotune:
+            entropy_gap = jax.lax.stop_gradient(log_prob + target_entropy).mean()
+            alpha_grad = -entropy_gap  # d/d(log α) of −log α · (log π + H_target)
+            updates, alpha_state = alpha_optimizer.update(
+                alpha_grad, alpha_state, params["log_alpha"]
+            )
+            params = {**params, "log_alpha": params["log_alpha"] + updates}
+        return params, (actor_state, opt_states[1], alpha_state), loss, jnp.exp(params["log_alpha"])
+
+    return init, critic_update, actor_update
+
+
+def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
+    nets = _networks(config, env, train_contexts)
+    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+    num_contexts = num_context_ids(env, train_contexts)
+    space = env.context_space
+    num_envs = config.num_envs
+    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
+    init, critic_update, actor_update = _learner(config, nets)
+    progress = Progress(
+        "SAC",
+        (config.warmup_steps + config.num_rows * config.updates_per_row * config.policy_frequency)
+        * num_envs,
+        config.progress_every,
+    )
+
+    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
-        params = _init(nets, config, init_key)
-        target_critic = params["critic"]
-        opt_states = (
-            actor_optimizer.init(params["actor"]),
-            critic_optimizer.init(params["critic"]),
-            alpha_optimizer.init(params["log_alpha"]),
-        )
+        params, target_critic, opt_states = init(init_key, params)  # given: continue them
         env_state, timestep = jax.vmap(cenv.reset)(jax.random.split(reset_key, num_envs))
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs
@@ -359,18 +398,9 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
             )
             key, sample_key, target_key = jax.random.split(key, 3)
             batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
-            loss, grads = jax.value_and_grad(critic_loss)(
-                params["critic"],
-                target_critic,
-                params["actor"],
-                params["log_alpha"],
-                batch,
-                target_key,
+            params, target_critic, opt_states, loss = critic_update(
+                params, target_critic, opt_states, batch, target_key
             )
-            updates, critic_state = critic_optimizer.update(grads, opt_states[1], params["critic"])
-            params = {**params, "critic": optax.apply_updates(params["critic"], updates)}
-            target_critic = optax.incremental_update(params["critic"], target_critic, config.tau)
-            opt_states = (opt_states[0], critic_state, opt_states[2])
             carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
             return carry, (loss, batch)
 
@@ -381,22 +411,9 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
             params, target_critic, opt_states, *rest, key = carry
             batch = jax.tree_util.tree_map(lambda x: x[-1], batches)
             key, actor_key = jax.random.split(key)
-            (loss, log_prob), grads = jax.value_and_grad(actor_loss, has_aux=True)(
-                params["actor"], params["critic"], params["log_alpha"], batch, actor_key
-            )
-            updates, actor_state = actor_optimizer.update(grads, opt_states[0], params["actor"])
-            params = {**params, "actor": optax.apply_updates(params["actor"], updates)}
-            alpha_state = opt_states[2]
-            if config.autotune:
-                entropy_gap = jax.lax.stop_gradient(log_prob + target_entropy).mean()
-                alpha_grad = -entropy_gap  # d/d(log α) of −log α · (log π + H_target)
-                updates, alpha_state = alpha_optimizer.update(
-                    alpha_grad, alpha_state, params["log_alpha"]
-                )
-                params = {**params, "log_alpha": params["log_alpha"] + updates}
-            opt_states = (actor_state, opt_states[1], alpha_state)
+            params, opt_states, loss, alpha = actor_update(params, opt_states, batch, actor_key)
             carry = (params, target_critic, opt_states, *rest, key)
-            return carry, (critic_losses.mean(), loss, jnp.exp(params["log_alpha"]))
+            return carry, (critic_losses.mean(), loss, alpha)
 
         def row(carry, row_index):
             carry, (critic_losses, actor_losses, alphas) = jax.lax.scan(
@@ -418,6 +435,140 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         return TrainResult(params, metrics)
 
     return train
+
+
+def train_gymnasium(
+    config: SACConfig,
+    env_id: str,
+    train_contexts: Any,
+    key,
+    *,
+    seed: int = 0,
+    vectorization: str = "sync",
+    **env_kwargs: Any,
+) -> TrainResult:
+    """SAC on the host collector (:class:`contextrl.agents.host.HostCollector`): for host
+    environments (dm_control…) or any registered id, with the same schedule as :func:`make_train`
+    (warm-up, then ``policy_frequency`` rounds of one vector step and one critic update per actor
+    update). Returns the same ``TrainResult``."""
+    from contextrl.agents.host import HostCollector
+
+    config.validate()
+    if config.context_selector == "static" or not isinstance(env_id, str):
+        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
+    with HostCollector(
+        env_id,
+        config.num_envs,
+        train_contexts,
+        config.context_obs,
+        selector=config.context_selector,
+        seed=seed,
+        vectorization=vectorization,
+        **env_kwargs,
+    ) as collector:
+        return _train_host(config, env_id, collector, key)
+
+
+def _train_host(config: SACConfig, name: str, collector, key) -> TrainResult:
+    nets = _build_networks(
+        config,
+        name,
+        collector.single_action_space,
+        collector.single_observation_space,
+        collector.context_input,
+    )
+    init, critic_update, actor_update = _learner(config, nets)
+    num_envs = config.num_envs
+    key, init_key = jax.random.split(key)
+    params, target_critic, opt_states = init(init_key)
+    replay = Replay.create(
+        max(config.buffer_size // num_envs, config.n_step + 1),
+        {
+            "obs": collector.obs,
+            "context": collector.context,
+            "action": np.zeros((num_envs, nets.action_size), np.float32),
+            "reward": np.zeros((num_envs,), np.float32),
+            "terminated": np.zeros((num_envs,), bool),
+            "done": np.zeros((num_envs,), bool),
+            "next_obs": collector.obs,
+        },
+    )
+    replay = jax.tree_util.tree_map(jnp.copy, replay)  # own buffers: the loop donates them
+
+    @jax.jit
+    def explore(actor_params, obs, context_vector, key):
+        return _sample_action(nets, actor_params, obs, context_vector, key)[0]
+
+    @functools.partial(jax.jit, donate_argnums=(3,))
+    def critic_round(params, target_critic, opt_states, replay, transition, key):
+        replay = replay.add(transition)
+        sample_key, target_key = jax.random.split(key)
+        batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
+        params, target_critic, opt_states, loss = critic_update(
+            params, target_critic, opt_states, batch, target_key
+        )
+        return params, target_critic, opt_states, replay, loss, batch
+
+    add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
+    actor_step = jax.jit(actor_update)
+
+    def collect(action: np.ndarray) -> dict:
+        obs, context_vector = collector.obs, collector.context
+        step = collector.step(nets.to_env(action))
+        return {
+            "obs": obs,
+            "context": context_vector,
+            "action": action,
+            "reward": step.reward,
+            "terminated": step.terminated,
+            "done": step.done,
+            "next_obs": step.final_obs,
+        }
+
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
+    for _ in range(config.warmup_steps):
+        uniform = rng.uniform(-1.0, 1.0, (num_envs, nets.action_size)).astype(np.float32)
+        replay = add(replay, collect(uniform))
+    collector.close_period()  # warm-up episodes stay in the episode list, not the curve
+    rows = []
+    for _ in range(config.num_rows):
+        critic_losses, actor_losses = [], []
+        for _ in range(config.updates_per_row):
+            for _ in range(config.policy_frequency):
+                key, action_key, round_key = jax.random.split(key, 3)
+                action = np.asarray(
+                    explore(params["actor"], collector.obs, collector.context, action_key)
+                )
+                params, target_critic, opt_states, replay, loss, batch = critic_round(
+                    params, target_critic, opt_states, replay, collect(action), round_key
+                )
+                critic_losses.append(loss)
+            key, actor_key = jax.random.split(key)
+            params, opt_states, loss, alpha = actor_step(params, opt_states, batch, actor_key)
+            actor_losses.append(loss)
+        row = collector.close_period()
+        row.update(
+            critic_loss=float(np.mean(critic_losses)),
+            actor_loss=float(np.mean(actor_losses)),
+            alpha=float(alpha),
+        )
+        rows.append(row)
+    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
+    metrics["episodes"] = collector.episodes(config.episode_log_size)
+    return TrainResult(params, metrics)
+
+
+def make_host_policy(config: SACConfig, action_space, obs_space, context) -> Callable:
+    """``act(params, obs, context_input, key) -> env actions`` (tanh of the mean) for a batch of host
+    observations; ``context`` is the training ContextInput."""
+    nets = _build_networks(config, "the environment", action_space, obs_space, context)
+
+    @jax.jit
+    def act(params, obs, context_vector, key):
+        mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
+        return nets.to_env(jnp.tanh(mean))
+
+    return act
 
 
 def make_policy(

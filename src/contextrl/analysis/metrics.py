@@ -90,6 +90,15 @@ def fraction_solved(scores, threshold: float) -> float:
     return float(np.mean(as_scores(scores) >= threshold))
 
 
+def near_best_threshold(*score_sets, tolerance: float = 0.01) -> float:
+    """The return at which a score counts as "at the best": within ``tolerance`` of the observed
+    range (best − worst) below the best score. Unlike a multiple of the best, it works for negative
+    returns (0.99 × a negative best lies above every score)."""
+    values = np.concatenate([as_scores(s).ravel() for s in score_sets])
+    best, worst = values.max(), values.min()
+    return float(best - tolerance * (best - worst))
+
+
 METRICS = {
     "mean": aggregate_mean,
     "median": aggregate_median,

@@ -51,8 +51,14 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
     features = list(returns)
     columns = min(3, len(features))
     rows = -(-len(features) // columns)
+    # constrained layout keeps the figure title, panel titles and colour bar from overlapping
     figure, axes = plt.subplots(
-        rows, columns, figsize=(4.2 * columns, 3.2 * rows), squeeze=False, sharey=True
+        rows,
+        columns,
+        figsize=(4.2 * columns, 3.2 * rows),
+        squeeze=False,
+        sharey=True,
+        layout="constrained",
     )
     cmap = plt.get_cmap("viridis")
     for axis, name in zip(axes.ravel(), features, strict=False):
@@ -76,17 +82,20 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
 
 
 def training_curves(
-    steps: Sequence[float],
+    steps: Sequence[float] | Mapping[str, Sequence[float]],
     curves_by_label: Mapping[str, np.ndarray],
     title: str = "",
     seed: int = 0,
 ):
-    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points)."""
+    """Mean training curve per label with a 95 % bootstrap band over runs (runs × points).
+
+    ``steps`` is shared, or a mapping label → steps for curves logged at different steps."""
     figure, axis = plt.subplots(figsize=(5.5, 3.5))
     for label, curves in curves_by_label.items():
+        x = steps[label] if isinstance(steps, Mapping) else steps
         mean, low, high = curve_band(curves, seed=seed)
-        (line,) = axis.plot(steps, mean, label=str(label))
-        axis.fill_between(steps, low, high, color=line.get_color(), alpha=0.25)
+        (line,) = axis.plot(x, mean, label=str(label))
+        axis.fill_between(x, low, high, color=line.get_color(), alpha=0.25)
     axis.set(xlabel="environment steps", ylabel="episode return", title=title)
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)
@@ -110,7 +119,11 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
     labels = list(results)
     metrics = list(next(iter(results.values())))
     figure, axes = plt.subplots(
-        1, len(metrics), figsize=(3.2 * len(metrics), 0.6 + 0.5 * len(labels)), squeeze=False
+        1,
+        len(metrics),
+        figsize=(3.2 * len(metrics), 1.0 + 0.5 * len(labels)),
+        squeeze=False,
+        layout="constrained",
     )
     for axis, metric in zip(axes[0], metrics, strict=True):
         for row, label in enumerate(labels):
@@ -121,7 +134,7 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
         axis.set_title(metric)
         axis.grid(axis="x", alpha=0.3)
     if title:
-        figure.suptitle(title, y=1.08)
+        figure.suptitle(title)
     return figure
 
 
@@ -139,8 +152,18 @@ def heatmap(
     vmin: float | None = None,
     vmax: float | None = None,
 ):
-    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red."""
+    """Mean value per cell of the 2-D context plane; training boxes (x0, x1, y0, y1) outlined in red.
+
+    ``vmin``/``vmax`` fix the colour scale (to share it between panels); by default it spans the
+    values, whatever their sign. Equal limits are widened by ½ so a constant plane still has a scale.
+    """
     x, y, values = (np.asarray(a, dtype=float).ravel() for a in (x, y, values))
+    vmin = float(np.nanmin(values)) if vmin is None else float(vmin)
+    vmax = float(np.nanmax(values)) if vmax is None else float(vmax)
+    if not vmin <= vmax:
+        raise ValueError(f"heatmap: vmin ({vmin:g}) must not exceed vmax ({vmax:g})")
+    if vmin == vmax:
+        vmin, vmax = vmin - 0.5, vmax + 0.5
     xedges = np.linspace(x.min(), x.max(), bins + 1)
     yedges = np.linspace(y.min(), y.max(), bins + 1)
     total, _, _ = np.histogram2d(x, y, bins=(xedges, yedges), weights=values)
@@ -161,6 +184,26 @@ def heatmap(
         axis.scatter(points[:, 0], points[:, 1], s=6, color="red", alpha=0.5, label="train")
         axis.legend(fontsize="small", loc="upper right")
     axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    return figure
+
+
+def schedules(
+    panels: Mapping[str, Mapping[str, tuple[Sequence[float], Sequence[float]]]], xlabel: str = ""
+):
+    """A panel per quantity (a hyper-parameter, the return), one step line per member over time."""
+    names = list(panels)
+    columns = min(3, len(names))
+    rows = -(-len(names) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.0 * rows), squeeze=False)
+    for axis, name in zip(axes.ravel(), names, strict=False):
+        for label, (x, y) in panels[name].items():
+            axis.step(np.asarray(x), np.asarray(y), where="post", label=str(label), alpha=0.8)
+        axis.set(xlabel=xlabel, title=name)
+        axis.grid(alpha=0.3)
+    for axis in axes.ravel()[len(names) :]:
+        axis.set_visible(False)
+    axes.ravel()[0].legend(fontsize="x-small")
+    figure.tight_layout()
     return figure
 
 
@@ -203,6 +246,41 @@ def scatter(
     for label, y in y_by_label.items():
         axis.scatter(x, y, s=12, label=str(label))
     axis.axhline(0.0, color="gray", lw=0.8)
+    axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    axis.legend(fontsize="small")
+    axis.grid(alpha=0.3)
+    return figure
+
+
+def return_vs_feature(
+    lines: Mapping[str, tuple[Sequence[float], np.ndarray]],
+    *,
+    xlabel: str,
+    train_range: tuple[float, float] | None = None,
+    ylabel: str = "test return",
+    title: str = "",
+    seed: int = 0,
+    reference: float | None = None,
+):
+    """Mean return against one context feature per label, with a 95 % bootstrap band over runs.
+
+    ``lines`` maps a label to (x values, returns shaped runs × points); ``train_range`` (low, high) is
+    shaded as the training range (a line when low == high); ``reference`` draws a dashed horizontal
+    line (e.g. the return at the default context).
+    """
+    figure, axis = plt.subplots(figsize=(5.5, 3.6))
+    if train_range is not None:
+        low, high = train_range
+        if high > low:
+            axis.axvspan(low, high, color="gray", alpha=0.15, label="training range")
+        else:
+            axis.axvline(low, color="gray", lw=1.5, alpha=0.6, label="training value")
+    for label, (x, runs) in lines.items():
+        mean, low, high = curve_band(runs, seed=seed)
+        (line,) = axis.plot(x, mean, marker="o", ms=3, label=str(label))
+        axis.fill_between(x, low, high, color=line.get_color(), alpha=0.2)
+    if reference is not None:
+        axis.axhline(reference, color="black", ls="--", lw=0.8, label="default context")
     axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)

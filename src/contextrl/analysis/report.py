@@ -24,6 +24,7 @@ figcaption { font-size: 0.85em; color: #555; max-width: 560px; }
 img.figure { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f8; padding: 1em; overflow-x: auto; font-size: 0.85em; }
 .failed { color: #a00; }
+.warning { border: 2px solid #a00; background: #fee; color: #700; padding: 0.6em 1em; }
 """
 
 
@@ -45,6 +46,7 @@ class Section:
     tables: Sequence[tuple[str, Sequence[Mapping[str, Any]]]] = ()
     figures: Sequence[Figure] = ()
     code: str = ""
+    warnings: Sequence[str] = ()  # shown first, in a red box: results a reader must not trust
 
 
 def _cell(value: Any) -> str:
@@ -91,6 +93,10 @@ def render(title: str, sections: Sequence[Section], metadata: Mapping[str, Any])
     for section in sections:
         slug = "".join(ch if ch.isalnum() else "-" for ch in section.title.lower())
         parts.append(f"<section id='{slug}'><h2>{html.escape(section.title)}</h2>")
+        parts.extend(
+            f"<p class='warning'>WARNING: {html.escape(warning)}</p>"
+            for warning in section.warnings
+        )
         parts.extend(f"<p>{html.escape(paragraph)}</p>" for paragraph in section.text)
         parts.extend(table_html(rows, caption) for caption, rows in section.tables)
         parts.extend(figure_html(figure) for figure in section.figures)

@@ -44,6 +44,12 @@ def spec(id: str) -> EnvSpec:
     """The registered spec for an id or alias, or a clear error listing the valid ids."""
     canonical = _ALIASES.get(id, id)
     if canonical not in _REGISTRY:
+        # "cartpole" finds CartPole when exactly one id or alias matches regardless of case
+        lower = str(id).lower()
+        matches = {_ALIASES.get(n, n) for n in (*_REGISTRY, *_ALIASES) if n.lower() == lower}
+        if len(matches) == 1:
+            (canonical,) = matches
+    if canonical not in _REGISTRY:
         close = difflib.get_close_matches(id, [*_REGISTRY, *_ALIASES], n=3)
         hint = f" Did you mean {close}?" if close else ""
         raise KeyError(f"unknown environment {id!r}.{hint} Registered: {sorted(_REGISTRY)}")

@@ -3,15 +3,33 @@
 from contextrl import experiments
 run, summary = experiments.run_experiment({"protocol": "optimality_gap", "env": "CartPole"})
 experiments.report(run.path)
+
+Each protocol is one module here (its spec class, expansion into trials and report sections); importing
+the package registers them all.
 """
 
+from contextrl.experiments import (  # noqa: F401  (registers the protocols)
+    hpo,
+    optimality_gap,
+    sensitivity,
+    tabular,
+    train_test,
+    visibility,
+)
 from contextrl.experiments.protocols import Plan, Trial, expand
 from contextrl.experiments.runner import prepare, report, resume, run_experiment
 from contextrl.experiments.runs import RunDir
-from contextrl.experiments.spec import PROTOCOLS, SpecError, parse_spec, spec_to_dict
+from contextrl.experiments.spec import (
+    SPECS,
+    SpecError,
+    parse_spec,
+    protocol_names,
+    register_protocol,
+    spec_to_dict,
+)
 
 __all__ = [
-    "PROTOCOLS",
+    "SPECS",
     "Plan",
     "RunDir",
     "SpecError",
@@ -19,6 +37,8 @@ __all__ = [
     "expand",
     "parse_spec",
     "prepare",
+    "protocol_names",
+    "register_protocol",
     "report",
     "resume",
     "run_experiment",

@@ -7,14 +7,26 @@ spec.yaml``, then the command-line options, so a YAML file can be rerun with one
 from __future__ import annotations
 
 import argparse
+import os
+import signal
+import socket
 import sys
+import threading
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from contextrl.experiments.runner import report, resume, run_experiment
-from contextrl.experiments.spec import PROTOCOLS, SpecError, parse_distribution
+from contextrl.agents import registered_agents
+from contextrl.experiments.executors import connect
+from contextrl.experiments.runner import prepare, report, resume
+from contextrl.experiments.runs import RunDir
+from contextrl.experiments.spec import (
+    SPECS,
+    SpecError,
+    agent_options_error,
+    load_yaml,
+    parse_distribution,
+)
 
 # The main job: CartPole with the pole length varied, hidden vs concat agents, a train/test split with
 # held-out and longer/shorter poles; a few minutes on 2 CPU cores.
@@ -42,32 +54,59 @@ def _assignments(items: list[str], option: str) -> dict[str, Any]:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise SpecError(f"{option}: expected NAME=VALUE, got {item!r}")
-        out[name] = yaml.safe_load(value)
+        out[name] = load_yaml(value, f"{option} {name}")
     return out
 
 
-def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
-    """The spec mapping of ``contextrl run`` (validated later, before anything runs)."""
-    if args.protocol in PRESETS:
-        data = {
-            k: v.copy() if isinstance(v, dict) else v for k, v in PRESETS[args.protocol].items()
-        }
-    elif args.protocol in PROTOCOLS:
-        data = {"protocol": args.protocol}
-    else:
+def count(text: str) -> int:
+    """An argparse type for counts that also reads ``1e5`` (a whole number written with an exponent)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not value.is_integer():
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    return int(value)
+
+
+def _load_yaml_file(path: str, option: str) -> Any:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as error:
+        raise SpecError(f"{option} {path}: {error.strerror or error}") from None
+    return load_yaml(text, f"{option} {path}")
+
+
+def _load_config(path: str) -> dict[str, Any]:
+    loaded = _load_yaml_file(path, "--config")
+    if not isinstance(loaded, dict):
+        raise SpecError(f"--config {path}: expected a YAML mapping of spec fields")
+    return loaded
+
+
+def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -> dict[str, Any]:
+    """The spec mapping of ``contextrl run`` (validated later, before anything runs); what options
+    did on top of the config (``--vary`` keeping some of its features) is appended to ``notices``."""
+    loaded = _load_config(args.config) if args.config else {}
+    protocol = args.protocol or loaded.get("protocol")
+    if protocol is None:
         raise SpecError(
-            f"unknown protocol {args.protocol!r}; choose one of {[*PRESETS, *PROTOCOLS]}"
+            "give a protocol (or quickstart), a --config that names one, or --resume DIR"
         )
-    if args.config:
-        loaded = yaml.safe_load(Path(args.config).read_text(encoding="utf-8"))
-        if not isinstance(loaded, dict):
-            raise SpecError(f"--config {args.config}: expected a YAML mapping of spec fields")
-        if (
-            loaded.get("protocol", data["protocol"]) != data["protocol"]
-            and args.protocol in PROTOCOLS
-        ):
+    if protocol in PRESETS:
+        data = {k: v.copy() if isinstance(v, dict) else v for k, v in PRESETS[protocol].items()}
+    elif protocol in SPECS:
+        data = {"protocol": protocol}
+    else:
+        raise SpecError(f"unknown protocol {protocol!r}; choose one of {[*PRESETS, *SPECS]}")
+    if loaded:
+        if loaded.get("protocol", data["protocol"]) != data["protocol"]:
             raise SpecError(
-                f"--config {args.config} is a {loaded['protocol']} spec, not {args.protocol}"
+                f"--config {args.config} is a {loaded['protocol']} spec, not {data['protocol']}"
             )
         data.update(loaded)
     simple = {
@@ -82,23 +121,27 @@ def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
     data.update({k: v for k, v in simple.items() if v is not None})
     if args.variants:
         data["variants"] = args.variants.split(",")
-    options = dict(data.get("agent_options") or {})
+    options = data.get("agent_options") or {}
+    if not isinstance(options, Mapping):
+        raise SpecError(agent_options_error(options))
+    options = dict(options)
+    if args.agent_config:
+        loaded = _load_yaml_file(args.agent_config, "--agent-config")
+        if not isinstance(loaded, dict):
+            raise SpecError(
+                f"--agent-config {args.agent_config}: expected a YAML mapping of agent options "
+                "(as written by contextrl run hpo)"
+            )
+        options.update(loaded)
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
     options.update(_assignments(args.agent_option, "--agent-option"))
     if options:
         data["agent_options"] = options
     if args.vary:
-        field = "train_box" if data["protocol"] == "train_test" else "train"
-        if data["protocol"] == "sensitivity":
-            data["features"] = list(args.vary)
-        elif field == "train_box":
-            data[field] = _assignments(args.vary, "--vary")
-        else:
-            data[field] = {
-                name: parse_distribution(name, value)
-                for name, value in (v.partition("=")[::2] for v in args.vary)
-            }
+        notice = SPECS[data["protocol"]].vary(data, args.vary)
+        if notice and notices is not None:
+            notices.append(notice)
     if args.test:
         data["test"] = {
             name: parse_distribution(name, value)
@@ -108,31 +151,128 @@ def spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
     return data
 
 
+# Options that shape a spec: refused with --resume, which continues the run its spec.yaml describes.
+SPEC_OPTIONS = (
+    "protocol", "config", "env", "agent", "variants", "seeds", "seed", "timesteps", "episodes",
+    "max_steps", "vary", "test", "agent_option", "agent_config", "set", "name", "out", "dry_run",
+)  # fmt: skip
+
+
+def _refuse_spec_options(args: argparse.Namespace) -> None:
+    given = [name for name in SPEC_OPTIONS if getattr(args, name) not in (None, [], False)]
+    if given:
+        flags = ", ".join("--" + name.replace("_", "-") for name in given).replace(
+            "--protocol", "PROTOCOL"
+        )
+        raise SpecError(
+            f"--resume {args.resume} continues the run as its spec.yaml says; {flags} cannot "
+            "apply (only --executor, --address, --max-chunks, --quiet, --log do). Start a new run "
+            "to change the spec"
+        )
+
+
+class _Interrupt:
+    """Ctrl-C stops ``contextrl run`` within a second, whatever it is doing (compiling included).
+
+    Python runs signal handlers in the main thread between bytecodes, so during a long compile a
+    handler waits. But the C-level handler writes the signal number to the wakeup fd at once, from
+    any thread: a watcher thread reading it prints how to resume and exits the process there and then.
+    A half-written file is a temporary name that a resumed run ignores, so nothing needs cleaning up;
+    child processes (a local Ray) get the terminal's Ctrl-C themselves.
+    """
+
+    def __init__(self) -> None:
+        self.run_path: Path | None = None
+        self.on_exit: list = []
+        self._lock = threading.Lock()
+        self._reader, self._writer = socket.socketpair()
+        self._writer.setblocking(False)
+        self.previous_fd = signal.set_wakeup_fd(self._writer.fileno())
+        self.previous = signal.signal(signal.SIGINT, lambda signum, frame: self.stop())
+        threading.Thread(target=self._wait, name="contextrl-interrupt", daemon=True).start()
+
+    def _wait(self) -> None:
+        while data := self._reader.recv(64):
+            if signal.SIGINT in data:
+                self.stop()
+
+    def stop(self) -> None:
+        with self._lock:
+            hint = (
+                f"; resume with: contextrl run --resume {self.run_path}"
+                if self.run_path is not None
+                else ""
+            )
+            for callback in self.on_exit:
+                callback()
+            print(f"\ncontextrl run: interrupted{hint}", file=sys.stderr, flush=True)
+            os._exit(130)
+
+    def close(self) -> None:
+        signal.set_wakeup_fd(self.previous_fd)
+        signal.signal(signal.SIGINT, self.previous)
+        self._writer.close()  # the watcher reads end-of-file and returns
+        self._reader.shutdown(socket.SHUT_RDWR)
+
+
+def _create_run(spec, args) -> RunDir:
+    try:
+        return RunDir.create(spec, root=args.root, out=args.out)
+    except FileExistsError as error:
+        raise SpecError(str(error)) from None
+    except OSError as error:
+        where = f"--out {args.out}" if args.out else f"--root {args.root}"
+        reason = error.strerror or str(error)
+        raise SpecError(
+            f"{where}: cannot create the run directory ({reason}: {error.filename}); "
+            "choose a writable folder"
+        ) from None
+
+
 def run_command(args: argparse.Namespace) -> int:
     progress = not args.quiet
+    interrupt = _Interrupt()
     try:
         if args.resume:
-            run, summary = resume(
-                args.resume,
-                executor=args.executor,
-                address=args.address,
-                max_chunks=args.max_chunks,
-                progress=progress,
-            )
+            _refuse_spec_options(args)
+            run = RunDir(args.resume)
+            spec = prepare(run.spec())
         else:
-            if not args.protocol:
-                raise SpecError("give a protocol (or quickstart), or --resume DIR")
-            run, summary = run_experiment(
-                spec_from_args(args),
-                out=args.out,
-                root=args.root,
-                executor=args.executor,
-                address=args.address,
-                max_chunks=args.max_chunks,
-                progress=progress,
-            )
-    except (FileExistsError, FileNotFoundError) as error:
+            notices: list[str] = []
+            spec = prepare(spec_from_args(args, notices))
+            for notice in notices:
+                print(notice, file=sys.stderr)
+            if args.dry_run:
+                from contextrl.experiments.planning import describe_plan
+
+                print(describe_plan(spec, calibrate_time=not args.no_calibration))
+                return 0
+        connect(args.executor, args.address)
+        if not args.resume:
+            run = _create_run(spec, args)
+            if progress:
+                print(f"run directory: {run.path}", file=sys.stderr, flush=True)
+        interrupt.run_path = run.path
+        logger = None
+        if args.log == "tensorboard":
+            from contextrl.experiments.tensorboard import TensorBoardLog
+
+            logger = TensorBoardLog(run).start()
+            interrupt.on_exit.append(logger.sync)
+            print(f"tensorboard: tensorboard --logdir {logger.folder}", file=sys.stderr)
+        run, summary = resume(
+            run.path,
+            executor=args.executor,
+            address=args.address,
+            max_chunks=args.max_chunks,
+            progress=progress,
+        )
+        if logger is not None:
+            logger.stop()
+    except FileNotFoundError as error:
         raise SpecError(str(error)) from None
+    finally:
+        interrupt.close()
     print(f"report: {run.path / 'report.html'}")
     if summary.failed:
         print(
@@ -149,21 +289,21 @@ def add_run(subparsers) -> None:
     parser = subparsers.add_parser(
         "run",
         help="run an experiment protocol and write a run directory with a report",
-        description="Protocols: " + ", ".join([*PRESETS, *PROTOCOLS]) + ". Options override "
+        description="Protocols: " + ", ".join([*PRESETS, *SPECS]) + ". Options override "
         "--config, which overrides the protocol's defaults.",
     )
-    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *PROTOCOLS]}")
+    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *SPECS]}")
     parser.add_argument("--config", help="a YAML spec (see examples/*.yaml)")
     parser.add_argument("--env", help="environment id (contextrl list)")
-    parser.add_argument("--agent", help="ppo, dqn, c51 or random")
+    parser.add_argument("--agent", help=f"a registered agent: {registered_agents()}")
     parser.add_argument(
         "--variants", help="comma-separated: hidden,concat_all,concat_varying,gated"
     )
-    parser.add_argument("--seeds", type=int, help="independent runs per variant")
-    parser.add_argument("--seed", type=int, help="base seed of contexts, training and bootstrap")
-    parser.add_argument("--timesteps", type=int, help="training steps per agent")
-    parser.add_argument("--episodes", type=int, help="evaluation episodes per context")
-    parser.add_argument("--max-steps", type=int, help="episode time limit")
+    parser.add_argument("--seeds", type=count, help="independent runs per variant")
+    parser.add_argument("--seed", type=count, help="base seed of contexts, training and bootstrap")
+    parser.add_argument("--timesteps", type=count, help="training steps per agent")
+    parser.add_argument("--episodes", type=count, help="evaluation episodes per context")
+    parser.add_argument("--max-steps", type=count, help="episode time limit")
     parser.add_argument(
         "--vary",
         action="append",
@@ -179,6 +319,11 @@ def add_run(subparsers) -> None:
         "--agent-option", action="append", default=[], metavar="KEY=VALUE", help="agent config"
     )
     parser.add_argument(
+        "--agent-config",
+        metavar="YAML",
+        help="agent options from a file, e.g. the best.yaml of an hpo run (--agent-option wins)",
+    )
+    parser.add_argument(
         "--set",
         action="append",
         default=[],
@@ -190,15 +335,46 @@ def add_run(subparsers) -> None:
     parser.add_argument("--root", default="runs", help="where new run directories go")
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
     parser.add_argument("--executor", default="local", help="local or ray")
-    parser.add_argument("--address", help="Ray cluster address (default: start a local one)")
-    parser.add_argument("--max-chunks", type=int, help="stop after this many chunks (resume later)")
+    parser.add_argument(
+        "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
+    )
+    parser.add_argument(
+        "--max-chunks", type=count, help="stop after this many chunks (resume later)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print trials, chunks, environment steps and a time estimate; run nothing",
+    )
+    parser.add_argument(
+        "--no-calibration",
+        action="store_true",
+        help="with --dry-run: skip the short timing run (no time estimate)",
+    )
+    parser.add_argument(
+        "--log",
+        choices=["tensorboard"],
+        help="also stream training curves and test returns to TensorBoard (RUN/tensorboard)",
+    )
     parser.set_defaults(handler=run_command)
 
 
 def report_command(args: argparse.Namespace) -> int:
     try:
-        path = report(args.run_dir)
+        if len(args.run_dir) > 1:
+            from contextrl.experiments.compare import compare_runs
+
+            out = Path(args.out or "comparison.html")
+            if out.suffix.lower() not in (".html", ".htm"):
+                raise SpecError(f"--out {out}: the comparison is an HTML report; name it *.html")
+            path = compare_runs(args.run_dir, out)
+        else:
+            if args.out:
+                raise SpecError(
+                    "report: --out is for several runs; one run's report is RUN/report.html"
+                )
+            path = report(args.run_dir[0])
     except FileNotFoundError as error:
         raise SpecError(str(error)) from None
     print(f"report: {path}")
@@ -206,9 +382,60 @@ def report_command(args: argparse.Namespace) -> int:
 
 
 def add_report(subparsers) -> None:
-    parser = subparsers.add_parser("report", help="rebuild the HTML report of a run directory")
-    parser.add_argument("run_dir", help="a run directory written by contextrl run")
+    parser = subparsers.add_parser(
+        "report",
+        help="rebuild the HTML report of a run, or overlay several runs of one protocol",
+    )
+    parser.add_argument("run_dir", nargs="+", help="run directories written by contextrl run")
+    parser.add_argument("--out", help="with several runs: the comparison HTML (comparison.html)")
     parser.set_defaults(handler=report_command)
+
+
+def eval_command(args: argparse.Namespace) -> int:
+    from contextrl.experiments.reevaluate import evaluate_run
+
+    if not args.test:
+        raise SpecError("eval: give the new contexts with --test FEATURE=DIST (repeatable)")
+    test = {}
+    for item in args.test:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise SpecError(f"--test: expected FEATURE=DIST, got {item!r}")
+        test[name.strip()] = parse_distribution(name.strip(), load_yaml(value, f"--test {name}"))
+    try:
+        file, frame = evaluate_run(
+            args.run_dir,
+            test,
+            num_contexts=args.contexts,
+            episodes=args.episodes,
+            name=args.name,
+        )
+    except FileNotFoundError as error:
+        raise SpecError(str(error)) from None
+    print(
+        f"evaluated {frame['trial'].nunique()} agents on {frame['context_index'].nunique()} "
+        f"contexts: {file}"
+    )
+    print(f"report: {Path(args.run_dir) / 'report.html'}")
+    return 0
+
+
+def add_eval(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "eval", help="evaluate a run's saved agents on new contexts (no retraining)"
+    )
+    parser.add_argument("run_dir", help="a run directory written by contextrl run")
+    parser.add_argument(
+        "--test",
+        action="append",
+        default=[],
+        metavar="FEATURE=DIST",
+        help="new contexts, e.g. length=uniform:0.1:2.0 (repeatable; other features default)",
+    )
+    parser.add_argument("--contexts", type=count, default=64, help="contexts to draw (64)")
+    parser.add_argument("--episodes", type=count, help="episodes per context (the run's)")
+    parser.add_argument("--name", help="name of this evaluation (eval-1, eval-2, …)")
+    parser.set_defaults(handler=eval_command)
 
 
 def main(argv: list[str] | None = None) -> int:

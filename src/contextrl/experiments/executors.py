@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir
-from contextrl.experiments.spec import parse_spec, spec_to_dict
+from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
 
 EXECUTORS = ("local", "ray")
@@ -98,6 +98,28 @@ def run_local(
     return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
 
 
+def connect(executor: str, address: str | None) -> None:
+    """Check the executor before a run directory exists: for ``ray``, join (or start) the cluster now,
+    so a wrong ``--address`` is a one-line error and leaves nothing half made."""
+    if executor not in EXECUTORS:
+        raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
+    if executor != "ray":
+        return
+    import ray
+
+    if ray.is_initialized():
+        return
+    try:
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    except ConnectionError as error:
+        where = f"--address {address}" if address else "a local Ray cluster"
+        reason = str(error).split(". ")[0]
+        raise SpecError(
+            f"{where}: {reason}; start a cluster with `ray start --head`, or leave out --address "
+            "to start a local one"
+        ) from None
+
+
 def _remote_chunk(spec_data: dict, chunk: int):
     """What a Ray worker runs: rebuild the plan from the spec, run one chunk."""
     plan = expand(parse_spec(spec_data))
@@ -141,3 +163,30 @@ def run_ray(
         report(chunk, True)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+
+def run_chunks(
+    run: RunDir,
+    plan: Plan,
+    *,
+    executor: str = "local",
+    address: str | None = None,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    save_params: bool = True,
+) -> Summary:
+    """Run the plan's unfinished chunks with the named executor."""
+    if executor == "ray":
+        return run_ray(
+            run,
+            plan,
+            address=address,
+            max_chunks=max_chunks,
+            progress=progress,
+            save_params=save_params,
+        )
+    if executor == "local":
+        return run_local(
+            run, plan, max_chunks=max_chunks, progress=progress, save_params=save_params
+        )
+    raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")

@@ -4,24 +4,22 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 from collections.abc import Mapping
 from typing import Any
 
-from contextrl.experiments.analyze import build_report, tabular_frame
-from contextrl.experiments.executors import EXECUTORS, Summary, run_local, run_ray
+from contextrl.experiments.analyze import build_report
+from contextrl.experiments.executors import EXECUTORS, Summary
 from contextrl.experiments.protocols import expand
-from contextrl.experiments.runs import RunDir, write_parquet
+from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
-from contextrl.experiments.trials import check_agent
 
 
 def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
     """A fully validated spec (fields, environment, features, agent options); nothing runs."""
-    spec = spec if isinstance(spec, CommonSpec) else parse_spec(spec)
-    if spec.protocol != "tabular":
-        check_agent(spec)
-    return spec
+    if isinstance(spec, CommonSpec):
+        spec.validate()
+        return spec
+    return parse_spec(spec)
 
 
 def _execute(
@@ -29,18 +27,14 @@ def _execute(
 ) -> Summary:
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
-    start = time.perf_counter()
-    if spec.protocol == "tabular":
-        if not run.finished():
-            write_parquet(run.result_path(0), tabular_frame(spec))
-        return Summary([0], [], [], [], time.perf_counter() - start)
-    plan = expand(spec)
-    save = spec.agent != "random"
-    if executor == "ray":
-        return run_ray(
-            run, plan, address=address, max_chunks=max_chunks, progress=progress, save_params=save
-        )
-    return run_local(run, plan, max_chunks=max_chunks, progress=progress, save_params=save)
+    return spec.execute(
+        run,
+        expand(spec),
+        executor=executor,
+        address=address,
+        max_chunks=max_chunks,
+        progress=progress,
+    )
 
 
 def run_experiment(

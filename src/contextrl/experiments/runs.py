@@ -6,6 +6,7 @@ Layout of ``runs/<name>-<time>/``::
     manifest.json        versions, seeds, plan size, start time
     results/chunk-0003.parquet    evaluation rows of the trials of chunk 3
     curves/chunk-0003.parquet     their training curves
+    training/chunk-0003.parquet   their return on their training contexts, and a random policy's
     checkpoints/<trial>.npz       trained parameters
     failures/chunk-0003.json      error and traceback of a chunk that raised
     timings.json         seconds per finished chunk
@@ -22,31 +23,14 @@ import datetime
 import json
 import os
 import platform
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import yaml
 
-from contextrl.experiments.spec import CommonSpec, parse_spec, spec_to_dict
-
-
-def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
-    """Call ``write(temporary_path)``, then rename the temporary file onto ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(handle)
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
-        raise
-    return path
+from contextrl.core.files import atomic_write
+from contextrl.experiments.spec import CommonSpec, load_yaml, parse_spec, spec_to_dict
 
 
 def write_text(path: Path, text: str) -> Path:
@@ -110,7 +94,7 @@ class RunDir:
         file = self.path / "spec.yaml"
         if not file.exists():
             raise FileNotFoundError(f"{self.path} is not a run directory (no spec.yaml)")
-        return parse_spec(yaml.safe_load(file.read_text(encoding="utf-8")))
+        return parse_spec(load_yaml(file.read_text(encoding="utf-8"), str(file)))
 
     def manifest(self) -> dict[str, Any]:
         file = self.path / "manifest.json"
@@ -139,16 +123,24 @@ class RunDir:
             for trial_id, params in zip(trial_ids, result.params, strict=True):
                 if params is not None:
                     save_checkpoint(
-                        self.path / "checkpoints" / f"{trial_id}.npz", params, trial=trial_id
+                        self.path / "checkpoints" / f"{trial_id}.npz",
+                        params,
+                        trial=trial_id,
+                        **result.checkpoint,
                     )
         if len(result.curves):
             write_parquet(self.path / "curves" / f"chunk-{chunk:04d}.parquet", result.curves)
-        timings = self.timings()
-        timings[str(chunk)] = result.seconds
-        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
+        if len(result.training):
+            write_parquet(self.path / "training" / f"chunk-{chunk:04d}.parquet", result.training)
+        self.record_timing(chunk, result.seconds)
         with contextlib.suppress(FileNotFoundError):
             (self.path / "failures" / f"chunk-{chunk:04d}.json").unlink()
         write_parquet(self.result_path(chunk), result.evaluations)
+
+    def record_timing(self, chunk: int, seconds: float) -> None:
+        timings = self.timings()
+        timings[str(chunk)] = seconds
+        write_text(self.path / "timings.json", json.dumps(timings, indent=2))
 
     def record_failure(self, chunk: int, trial_ids: list[str], error: str, traceback: str) -> None:
         record = {"chunk": chunk, "trials": trial_ids, "error": error, "traceback": traceback}
@@ -177,6 +169,11 @@ class RunDir:
         if frame.empty:
             return frame
         return frame.sort_values(["trial", "test_set", "context_index"], ignore_index=True)
+
+    def training(self) -> pd.DataFrame:
+        """Per trial: return on its training contexts and a random policy's on the same contexts."""
+        frame = self._read("training")
+        return frame if frame.empty else frame.sort_values("trial", ignore_index=True)
 
     def curves(self) -> pd.DataFrame:
         frame = self._read("curves")

@@ -1,5 +1,10 @@
 """Experiment specs: one typed, frozen dataclass per protocol, parsed from YAML/dicts and validated.
 
+A protocol *is* its spec class: each protocol module (sensitivity, optimality_gap, visibility,
+train_test, tabular, hpo) subclasses :class:`CommonSpec`, registers it with :func:`register_protocol`
+and implements how it expands into trials, how it runs (chunks of trials by default) and which report
+sections it contributes; nothing else in the package names a protocol.
+
 Every check runs before anything is trained: an unknown environment, feature, agent, visibility
 variant or key, an empty distribution, an empty or overlapping train/test split all raise
 :class:`SpecError` naming the field, the value and the valid choices.
@@ -9,9 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import typing
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, ClassVar
+
+import yaml
 
 from contextrl.context.distributions import (
     Categorical,
@@ -25,8 +33,6 @@ from contextrl.context.distributions import (
 )
 from contextrl.context.features import ContextError
 
-PROTOCOLS = ("sensitivity", "optimality_gap", "visibility", "train_test", "tabular")
-AGENTS = ("ppo", "dqn", "c51", "random")
 VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")
 DISTRIBUTION_NAMES = {
     "uniform": Uniform,
@@ -41,6 +47,44 @@ DISTRIBUTION_NAMES = {
 
 class SpecError(ValueError):
     """An invalid experiment spec; raised before anything runs."""
+
+
+class _SpecLoader(yaml.SafeLoader):
+    """PyYAML's safe loader reading exponents as numbers, as YAML 1.2 does (YAML 1.1, PyYAML's
+    default, wants ``1.0e+5`` and reads ``1e5`` as a string). A whole number written with an exponent
+    and no point (``1e5``) is an int, so it can be a step count; ``2.5e-3`` is a float."""
+
+
+_EXPONENT_TAG = "tag:contextrl,2024:exponent"
+_SpecLoader.add_implicit_resolver(
+    _EXPONENT_TAG,
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)?(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def _exponent(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int | float:
+    text = loader.construct_scalar(node).replace("_", "")
+    value = float(text)
+    return int(value) if "." not in text and value.is_integer() else value
+
+
+_SpecLoader.add_constructor(_EXPONENT_TAG, _exponent)
+
+
+def load_yaml(text: str, source: str = "YAML") -> Any:
+    """YAML text as data; a syntax error becomes a one-line :class:`SpecError` with line and column."""
+    try:
+        return yaml.load(text, Loader=_SpecLoader)  # noqa: S506  (a SafeLoader subclass)
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise SpecError(f"{source}: YAML syntax error{where}: {error.problem}") from None
+    except yaml.YAMLError as error:
+        raise SpecError(f"{source}: cannot read YAML ({error})") from None
+
+
+_HOST_ENVS: dict[str, Any] = {}
 
 
 def parse_distribution(feature: str, value: Any):
@@ -64,7 +108,7 @@ def parse_distribution(feature: str, value: Any):
                 f"{feature}: unknown distribution {name!r}; choose one of {list(DISTRIBUTION_NAMES)}"
             )
         if name == "categorical":
-            return Categorical(tuple(args))
+            return _categorical(feature, args)
         args = args if isinstance(args, (list, tuple)) else [args]
         try:
             return DISTRIBUTION_NAMES[name](*args)
@@ -75,13 +119,37 @@ def parse_distribution(feature: str, value: Any):
     return Constant(value)
 
 
+def _categorical(feature: str, args: Any) -> Categorical:
+    """``[a, b]`` (equal weights), ``{choices: [a, b], weights: [1, 3]}`` or ``{a: 1, b: 3}``."""
+    if isinstance(args, Mapping):
+        if set(args) <= {"choices", "weights"} and "choices" in args:
+            choices, weights = args["choices"], args.get("weights")
+        else:
+            choices, weights = list(args), list(args.values())
+        if not isinstance(choices, (list, tuple)) or (
+            weights is not None and not isinstance(weights, (list, tuple))
+        ):
+            raise SpecError(
+                f"{feature}: categorical takes {{choices: [...], weights: [...]}}, got {args!r}"
+            )
+        if weights is not None and len(weights) != len(choices):
+            raise SpecError(
+                f"{feature}: categorical has {len(choices)} choices but {len(weights)} weights"
+            )
+        return Categorical(tuple(choices), None if weights is None else tuple(weights))
+    return Categorical(tuple(args if isinstance(args, (list, tuple)) else [args]))
+
+
 def distribution_to_yaml(distribution) -> Any:
     """The inverse of :func:`parse_distribution`, for writing the resolved spec."""
     for name, cls in DISTRIBUTION_NAMES.items():
         if type(distribution) is cls:
             values = [v for v in dataclasses.astuple(distribution) if v is not None]
             if name == "categorical":
-                return {name: list(distribution.choices)}
+                if distribution.weights is None:
+                    return {name: list(distribution.choices)}
+                weights = [float(w) for w in distribution.weights]
+                return {name: {"choices": list(distribution.choices), "weights": weights}}
             return {name: [v if isinstance(v, str) else float(v) for v in values]}
     raise SpecError(f"not a distribution: {distribution!r}")
 
@@ -103,6 +171,11 @@ class CommonSpec:
     batch_size: int = 16  # trials trained together in one vmapped call (one chunk)
     bootstrap_reps: int = 2000
 
+    trains_agents: ClassVar[bool] = True  # False: the protocol has no agent, env or variants
+    vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
+    per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
+    draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
+
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
         _check_int("seed", self.seed, 0)
@@ -111,12 +184,10 @@ class CommonSpec:
         _check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
             _check_int("max_steps", self.max_steps, 1)
-        if self.protocol == "tabular":
+        if not self.trains_agents:
             return
-        if self.agent not in AGENTS:
-            raise SpecError(f"agent: unknown agent {self.agent!r}; choose one of {list(AGENTS)}")
         if not isinstance(self.agent_options, Mapping):
-            raise SpecError(f"agent_options must be a mapping, got {self.agent_options!r}")
+            raise SpecError(agent_options_error(self.agent_options))
         if not self.variants:
             raise SpecError(f"variants: give at least one of {list(VARIANTS)}")
         for variant in self.variants:
@@ -126,24 +197,99 @@ class CommonSpec:
                 )
         if len(set(self.variants)) != len(self.variants):
             raise SpecError(f"variants: {list(self.variants)} repeats a variant")
-        self.make_env()
+        env = self.make_env()
+        agent = self.agent_entry()
+        from contextrl.agents import ConfigError
 
-    def make_env(self):
-        """The environment (hidden observation; agents add their own context input)."""
+        try:
+            agent.check_env(env, host=self.host)
+            for variant in self.variants:
+                agent.config(self.env, self.agent_options, variant)
+        except ConfigError as error:
+            raise SpecError(f"agent_options: {error}") from None
+
+    def agent_entry(self):
+        """The registered agent of this spec."""
+        from contextrl.agents import get_agent
+
+        try:
+            return get_agent(self.agent)
+        except KeyError as error:
+            raise SpecError(f"agent: {error.args[0]}") from None
+
+    def agent_config(self, variant: str):
+        """The agent's config for one visibility variant (None for an untrained agent)."""
+        return self.agent_entry().config(self.env, self.agent_options, variant)
+
+    @property
+    def host(self) -> bool:
+        """Whether the environment is a host environment (trained through the host collector)."""
         import contextrl as crl
 
         try:
-            registered = crl.spec(self.env)
+            return crl.spec(self.env).host
         except KeyError as error:
             raise SpecError(f"env: {error.args[0]}") from None
-        if registered.host:
-            jax_envs = [i for i in crl.registered() if not crl.spec(i).host]
-            raise SpecError(
-                f"env: {self.env} is a host environment (stepped outside JAX); the agents here train "
-                f"JAX environments: choose one of {jax_envs}"
-            )
+
+    def make_env(self):
+        """The environment (hidden observation; agents add their own context input). A host
+        environment is built once per process and shared: specs only read its spaces."""
+        import contextrl as crl
+
+        if self.host:
+            if self.env not in _HOST_ENVS:
+                _HOST_ENVS[self.env] = crl.make(self.env)
+            return _HOST_ENVS[self.env]
         kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
         return crl.make(self.env, **kwargs)
+
+    # ---- the protocol: what subclasses implement -------------------------------------------------
+    def expand(self) -> tuple[dict, list]:
+        """Named context sets and the trials (see :mod:`contextrl.experiments.protocols`)."""
+        raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
+
+    def execute(self, run, plan, *, executor, address, max_chunks, progress):
+        """Run what is unfinished in ``run``; the default trains the plan's chunks of trials."""
+        from contextrl.experiments.executors import run_chunks
+
+        return run_chunks(
+            run,
+            plan,
+            executor=executor,
+            address=address,
+            max_chunks=max_chunks,
+            progress=progress,
+            save_params=self.agent_entry().trained,
+        )
+
+    def sections(self, plan, results, curves) -> list:
+        """The protocol's report sections from the finished results and training curves."""
+        raise NotImplementedError
+
+    def progress_row(self, run, plan, results, failures) -> dict:
+        """The report's progress table row."""
+        return {
+            "trials": len(plan.trials),
+            "trials finished": int(results["trial"].nunique()) if not results.empty else 0,
+            "chunks": len(plan.chunks),
+            "chunks finished": len(run.finished()),
+            "chunks failed": len(failures),
+            "seconds (sum over chunks)": round(sum(run.timings().values()), 1),
+        }
+
+    @classmethod
+    def vary(cls, data: dict, items: list[str]) -> str | None:
+        """Apply ``contextrl run --vary FEATURE=DIST`` items to the spec mapping ``data``, feature by
+        feature on top of what a config gave; returns a notice saying what was kept and replaced."""
+        if cls.vary_field is None:
+            raise SpecError(f"--vary: the {data['protocol']} protocol varies no features")
+        given = {}
+        for item in items:
+            name, sep, value = item.partition("=")
+            if not sep or not name.strip() or not value.strip():
+                raise SpecError(f"--vary: expected FEATURE=DIST, got {item!r}")
+            given[name.strip()] = parse_distribution(name.strip(), value.strip())
+        return merge_features(data, cls.vary_field, given)
 
     def space(self):
         return self.make_env().context_space
@@ -159,182 +305,48 @@ class CommonSpec:
             raise SpecError(f"{field}: {error}") from None
 
 
-@dataclasses.dataclass(frozen=True)
-class SensitivitySpec(CommonSpec):
-    """Train on the default context; evaluate with each feature scaled by A × default (paper §6.1)."""
-
-    features: tuple[str, ...] | str = "all"  # "all": every numeric feature with a non-zero default
-    magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
-
-    def validate(self) -> None:
-        super().validate()
-        if not self.magnitudes:
-            raise SpecError("magnitudes: give at least one magnitude A")
-        for magnitude in self.magnitudes:
-            _check_number("magnitudes", magnitude, 0.0)
-        self.feature_names()
-
-    def feature_names(self) -> tuple[str, ...]:
-        space = self.space()
-        if self.features == "all":
-            names = tuple(
-                n for n, f in space.features.items() if f.kind != "categorical" and f.default != 0
-            )
-        else:
-            try:
-                names = tuple(space.resolve(n) for n in _as_tuple(self.features))
-            except ContextError as error:
-                raise SpecError(f"features: {error}") from None
-            for name in names:
-                f = space.features[name]
-                if f.kind == "categorical" or f.default == 0:
-                    raise SpecError(f"features: {name} cannot be scaled (categorical or default 0)")
-        if not names:
-            raise SpecError("features: no feature to vary")
-        return names
-
-
-@dataclasses.dataclass(frozen=True)
-class OptimalityGapSpec(CommonSpec):
-    """One general agent on N sampled contexts vs one specialist per context (paper §6.2)."""
-
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
-    num_contexts: int = 64
-
-    def validate(self) -> None:
-        super().validate()
-        _check_int("num_contexts", self.num_contexts, 1)
-        self.resolve_features("train", self.train)
-
-
-@dataclasses.dataclass(frozen=True)
-class VisibilitySpec(CommonSpec):
-    """Hidden vs visible context: training curves and returns on held-out contexts (paper §6.3)."""
-
-    variants: tuple[str, ...] = ("hidden", "concat_all", "concat_varying")
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
-    test: dict | None = None  # None: held-out contexts from the training distribution
-    num_train_contexts: int = 64
-    num_test_contexts: int = 64
-
-    def validate(self) -> None:
-        super().validate()
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 1)
-        self.resolve_features("train", self.train)
-        if self.test is not None:
-            self.resolve_features("test", self.test)
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainTestSpec(CommonSpec):
-    """Kirk et al.'s modes over two features (paper §6.4).
-
-    ``train_box``/``test_box`` map each of the two features to [low, high]. Mode A trains on the whole
-    train box, B on an L-shaped band of width ``band`` (a fraction of each range) along the low edges,
-    C on the two low edges themselves (single values per feature). Test contexts cover the test box,
-    which must reach beyond the train box on both features so every region is tested.
-    """
-
-    variants: tuple[str, ...] = ("hidden", "concat_varying")
-    modes: tuple[str, ...] = ("A", "B", "C")
-    train_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.25, 0.75], "tau": [0.015, 0.025]}
+def merge_features(data: dict, field: str, given: Mapping[str, Any]) -> str | None:
+    """Set ``data[field]`` to its features updated with ``given``; a notice when some were kept."""
+    existing = data.get(field)
+    existing = dict(existing) if isinstance(existing, Mapping) else {}
+    data[field] = {**existing, **given}
+    kept = [name for name in existing if name not in given]
+    if not kept:
+        return None
+    replaced = [name for name in given if name in existing]
+    return (
+        f"--vary: {field} keeps {kept} from the config"
+        + (f" and replaces {replaced}" if replaced else "")
+        + f"; now {list(data[field])}"
     )
-    test_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.05, 1.5], "tau": [0.005, 0.05]}
+
+
+SPECS: dict[str, type[CommonSpec]] = {}
+
+
+def register_protocol(cls: type[CommonSpec]) -> type[CommonSpec]:
+    """Class decorator: make a spec class the protocol named by its ``protocol`` field's default."""
+    name = cls.__dataclass_fields__["protocol"].default
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"{cls.__name__} needs a default for its protocol field")
+    SPECS[name] = cls
+    return cls
+
+
+def protocol_names() -> list[str]:
+    return list(SPECS)
+
+
+def agent_options_error(value: Any) -> str:
+    """The message for agent_options that are not a mapping (often ``"key=value"`` text)."""
+    example = "{total_timesteps: 1000}"
+    if isinstance(value, str) and "=" in value:
+        key, _, number = value.partition("=")
+        example = f"{{{key.strip()}: {number.strip()}}}"
+    return (
+        f"agent_options: expected a mapping of agent options, got {value!r}; "
+        f"in YAML write agent_options: {example} (or --agent-option KEY=VALUE)"
     )
-    band: float = 0.1
-    num_train_contexts: int = 64
-    num_test_contexts: int = 144
-
-    def validate(self) -> None:
-        super().validate()
-        for mode in self.modes:
-            if mode not in ("A", "B", "C"):
-                raise SpecError(f"modes: unknown mode {mode!r}; choose from ['A', 'B', 'C']")
-        if not self.modes:
-            raise SpecError("modes: give at least one of ['A', 'B', 'C']")
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 4)
-        _check_number("band", self.band, 0.0)
-        if not self.band < 1.0:
-            raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
-        train, test = self.boxes()
-        for name in train:
-            (tl, th), (sl, sh) = train[name], test[name]
-            if not (sl < tl and th < sh):
-                raise SpecError(
-                    f"test_box/train_box: test range {[sl, sh]} of {name} overlaps the train range "
-                    f"{[tl, th]} without reaching beyond it on both sides; the protocol needs "
-                    "extrapolation regions"
-                )
-
-    def boxes(self) -> tuple[dict, dict]:
-        """Canonical feature names → (low, high), checked against the feature bounds."""
-        space = self.space()
-        out = []
-        for field, box in (("train_box", self.train_box), ("test_box", self.test_box)):
-            if not isinstance(box, Mapping) or len(box) != 2:
-                raise SpecError(f"{field}: give exactly two features with [low, high], got {box!r}")
-            resolved = {}
-            for name, ends in box.items():
-                try:
-                    canonical = space.resolve(name)
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                if not isinstance(ends, (list, tuple)) or len(ends) != 2:
-                    raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
-                low, high = (_check_number(f"{field}.{name}", v) for v in ends)
-                if not low < high:
-                    raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
-                try:
-                    Uniform(low, high).check(space.features[canonical])
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                resolved[canonical] = (low, high)
-            out.append(resolved)
-        if list(out[0]) != list(out[1]):
-            raise SpecError(
-                f"train_box and test_box must name the same two features in the same order, "
-                f"got {list(out[0])} and {list(out[1])}"
-            )
-        return out[0], out[1]
-
-
-@dataclasses.dataclass(frozen=True)
-class TabularSpec(CommonSpec):
-    """Exact optimality gaps on the paper's 3-state cMDP and seeded random tabular cMDPs."""
-
-    env: str = "tabular"
-    agent: str = "value_iteration"
-    num_random: int = 8
-    states: int = 4
-    actions: int = 2
-    contexts: int = 3
-    discount: float = 0.9
-
-    def validate(self) -> None:
-        super().validate()
-        for field in ("num_random", "states", "actions", "contexts"):
-            _check_int(field, getattr(self, field), 1 if field != "num_random" else 0)
-        if self.actions**self.states > 100_000:
-            raise SpecError(
-                f"states/actions: {self.actions}^{self.states} deterministic policies are too many "
-                "to enumerate exactly (limit 100000)"
-            )
-        _check_number("discount", self.discount, 0.0)
-        if not self.discount < 1.0:
-            raise SpecError(f"discount: must be below 1, got {self.discount!r}")
-
-
-SPECS: dict[str, type[CommonSpec]] = {
-    "sensitivity": SensitivitySpec,
-    "optimality_gap": OptimalityGapSpec,
-    "visibility": VisibilitySpec,
-    "train_test": TrainTestSpec,
-    "tabular": TabularSpec,
-}
 
 
 def _check_int(field: str, value: Any, minimum: int) -> int:
@@ -361,7 +373,7 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
         raise SpecError(f"a spec is a mapping of fields, got {type(data).__name__}")
     protocol = data.get("protocol")
     if protocol not in SPECS:
-        raise SpecError(f"protocol: unknown protocol {protocol!r}; choose one of {list(PROTOCOLS)}")
+        raise SpecError(f"protocol: unknown protocol {protocol!r}; choose one of {list(SPECS)}")
     cls = SPECS[protocol]
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - set(fields))

@@ -1,8 +1,10 @@
 """Run one chunk of trials: every trial of the chunk trains and is evaluated in one vmapped call.
 
-The agent adapter hides what differs between agents ("ppo", "dqn", "c51": contextrl's agents; "random":
-uniform random actions, a no-training baseline and the cheap agent for smoke tests). A chunk returns plain tables, so
-it can run in this process or on a Ray worker.
+Agents come from the agent registry (:mod:`contextrl.agents.registry`), so any registered agent runs in
+every protocol; an untrained agent (the random baseline) only evaluates. Each trial is also evaluated
+on (up to ``TRAIN_EVAL_CONTEXTS`` of) its own training contexts next to a uniform random policy, so a
+report can say whether the agents learned at all. A chunk returns plain tables, so it can run in this
+process or on a Ray worker.
 """
 
 from __future__ import annotations
@@ -16,124 +18,165 @@ import numpy as np
 import pandas as pd
 
 from contextrl.experiments.protocols import Plan, stack_sets, trial_key
-from contextrl.experiments.spec import SpecError
+
+TRAIN_EVAL_CONTEXTS = 16
 
 
 @dataclasses.dataclass
 class ChunkResult:
-    """Evaluation rows (one per trial × test context), training-curve rows and trained parameters."""
+    """Evaluation rows (one per trial × test context), training-curve rows, per-trial returns on the
+    training contexts (trained and random policy), trained parameters, and what a checkpoint needs to
+    rebuild the policy (config, training contexts, agent and environment names)."""
 
     evaluations: pd.DataFrame
     curves: pd.DataFrame
     params: list[Any]
     seconds: float
-
-
-def agent_config(spec, variant: str):
-    """The agent's config from the spec's agent options with this visibility variant (validated).
-
-    "ppo": PPOConfig; "dqn": DQNConfig; "c51": the paper's C51 setting for the environment where the
-    paper has one (else DQNConfig with the distributional head), options overriding either.
-    """
-    from contextrl.agents import ConfigError, dqn, ppo
-
-    options = dict(spec.agent_options)
-    config_type = ppo.PPOConfig if spec.agent == "ppo" else dqn.DQNConfig
-    fields = {f.name for f in dataclasses.fields(config_type)}
-    unknown = sorted(set(options) - fields)
-    if unknown:
-        raise SpecError(
-            f"agent_options: unknown {spec.agent} option(s) {unknown}; valid: {sorted(fields)}"
-        )
-    options["context_obs"] = variant
-    try:
-        if spec.agent == "c51" and spec.env in dqn.PAPER_C51:
-            config = dqn.paper_config(spec.env, **options)
-        elif spec.agent == "c51":
-            config = dqn.DQNConfig(**{"distributional": True, **options})
-        else:
-            config = config_type(**options)
-        config.validate()
-    except (ConfigError, TypeError) as error:
-        raise SpecError(f"agent_options: {error}") from None
-    return config
-
-
-def _agent_module(name: str):
-    from contextrl.agents import dqn, ppo
-
-    return ppo if name == "ppo" else dqn
-
-
-def check_agent(spec) -> None:
-    """Refuse bad agent options before anything runs."""
-    if spec.agent != "random":
-        for variant in spec.variants:
-            agent_config(spec, variant)
-    elif spec.agent_options:
-        raise SpecError(
-            f"agent_options: the {spec.agent} agent takes none, got {spec.agent_options}"
-        )
+    training: pd.DataFrame = dataclasses.field(default_factory=pd.DataFrame)
+    checkpoint: dict = dataclasses.field(default_factory=dict)
 
 
 _COMPILED: dict[tuple, Any] = {}
 
 
-def _compiled(spec, variant: str, env, template):
+def _first(contexts, n: int):
+    return jax.tree_util.tree_map(lambda leaf: leaf[:n], contexts)
+
+
+def _compiled(spec, variant: str, env, template, tested_on_training: bool):
     """The jitted, vmapped train-and-evaluate function; chunks of the same shape share one compile.
 
     Only the structure of ``template`` matters (its size and which features vary), so it is the key.
+    ``tested_on_training``: the test set is the training set (optimality gap), so the trained
+    policy's return there is read from the test returns instead of evaluated twice.
     """
+    agent = spec.agent_entry()
     key = (
         spec.env,
         spec.max_steps,
         spec.agent,
         repr(sorted(spec.agent_options.items())),
         spec.eval_episodes,
-        variant if spec.agent != "random" else "",  # the random policy ignores the context
+        variant if agent.trained else "",  # an untrained policy ignores the context input
+        tested_on_training,
         len(template),
         env.context_space.varying(template) if len(template) > 1 else (),
     )
     if key in _COMPILED:
         return _COMPILED[key]
-    from contextrl.agents import evaluate
+    from contextrl.agents import evaluate, get_agent
 
     episodes = spec.eval_episodes
-    if spec.agent == "random":
+    config = spec.agent_config(variant)
+    policy = agent.make_policy(config, env, template)
+    random_policy = get_agent("random").make_policy(None, env, template)
+    train = agent.make_train(config, env, template) if agent.trained else None
 
-        def random_policy(params, obs, ctx, key):
-            return env.action_space.sample(key)
-
-        def one(key, train_ctx, test_ctx):
-            returns = evaluate(random_policy, None, env, test_ctx, episodes, key)
-            return returns, jax.numpy.zeros(0), jax.numpy.zeros(0), None
-
-    else:
-        agent = _agent_module(spec.agent)
-        config = agent_config(spec, variant)
-        train = agent.make_train(config, env, template)
-        policy = agent.make_policy(config, env, template)
-
-        def one(key, train_ctx, test_ctx):
-            train_key, eval_key = jax.random.split(key)
+    def one(key, train_ctx, test_ctx):
+        train_key, eval_key, train_eval_key = jax.random.split(key, 3)
+        if train is None:
+            params, steps, curve = None, jax.numpy.zeros(0), jax.numpy.zeros(0)
+        else:
             result = train(train_key, train_ctx)
-            returns = evaluate(policy, result.params, env, test_ctx, episodes, eval_key)
-            return returns, result.metrics["step"], result.metrics["episode_return"], result.params
+            params, steps = result.params, result.metrics["step"]
+            curve = result.metrics["episode_return"]
+        returns = evaluate(policy, params, env, test_ctx, episodes, eval_key)
+        own = _first(train_ctx, TRAIN_EVAL_CONTEXTS)
+        if tested_on_training:
+            trained = returns[:TRAIN_EVAL_CONTEXTS].mean()
+        else:
+            trained = evaluate(policy, params, env, own, episodes, train_eval_key).mean()
+        random = evaluate(random_policy, None, env, own, episodes, train_eval_key).mean()
+        return returns, steps, curve, params, trained, random
 
     _COMPILED[key] = jax.jit(jax.vmap(one))
     return _COMPILED[key]
 
 
-def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_batch):
-    """(returns (trials × test contexts), curve steps, curves (trials × points), per-trial params)."""
-    function = _compiled(spec, variant, env, template)
-    returns, steps, curves, params = function(keys, train_batch, test_batch)
+def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_batch, same):
+    """(returns (trials × test contexts), curve steps, curves (trials × points), per-trial params,
+    per-trial (trained, random) mean return on the training contexts)."""
+    function = _compiled(spec, variant, env, template, same)
+    returns, steps, curves, params, trained, random = function(keys, train_batch, test_batch)
     params = jax.device_get(params)
     per_trial = [
         None if params is None else jax.tree_util.tree_map(lambda leaf, i=i: leaf[i], params)
         for i in range(len(keys))
     ]
-    return np.asarray(returns), np.asarray(steps[0]), np.asarray(curves), per_trial
+    own = np.stack([np.asarray(trained), np.asarray(random)], axis=1)
+    return np.asarray(returns), np.asarray(steps[0]), np.asarray(curves), per_trial, own
+
+
+def host_context_input(spec, variant: str, env, template):
+    """What a host-trained agent of ``variant`` sees of the context (nothing for an untrained one)."""
+    from contextrl.agents.networks import ContextInput, context_input
+
+    trained = spec.agent_entry().trained
+    return (context_input(variant, env.context_space, template) if trained else None) or (
+        ContextInput()
+    )
+
+
+def host_returns(spec, context, policy, params, contexts, episodes: int, key) -> np.ndarray:
+    """Mean return per context of a host policy, one host copy per context."""
+    from contextrl.agents.host import HostCollector
+
+    limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
+    seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
+    with HostCollector(
+        spec.env,
+        len(contexts),
+        contexts,
+        selector="round_robin",  # copy i runs context i
+        seed=seed,
+        context=context,
+        **limit,
+    ) as collector:
+        return collector.evaluate(policy, params, episodes, key)
+
+
+def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
+    """The host path of a chunk: each trial trains on the shared host collector (the agent's
+    ``train_host``), then acts in host copies of its test and training contexts; same outputs as
+    :func:`_train_and_evaluate`."""
+    from contextrl.agents import get_agent
+    from contextrl.agents.networks import ContextInput
+
+    spec = plan.spec
+    agent = spec.agent_entry()
+    variant = trials[0].variant
+    config = spec.agent_config(variant)
+    context = host_context_input(spec, variant, env, template)
+    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
+    act = agent.make_host_policy(config, *spaces, context)
+    random_act = get_agent("random").make_host_policy(None, *spaces, ContextInput())
+    limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
+
+    def evaluate(policy, params, contexts, key) -> np.ndarray:
+        return host_returns(spec, context, policy, params, contexts, spec.eval_episodes, key)
+
+    returns, steps, curves, params, own = [], np.zeros(0), [], [], []
+    for trial, key in zip(trials, keys, strict=True):
+        train_key, eval_key, own_key = jax.random.split(key, 3)
+        train_set = plan.sets[trial.train_set].contexts
+        trial_params = None
+        if agent.trained:
+            seed = int(jax.random.randint(train_key, (), 0, 2**31 - 1))
+            result = agent.train_host(
+                config, spec.env, train_set, train_key, seed=seed, context=context, **limit
+            )
+            trial_params, steps = result.params, np.asarray(result.metrics["step"])
+            curves.append(np.asarray(result.metrics["episode_return"]))
+        returns.append(evaluate(act, trial_params, plan.sets[trial.test_set].contexts, eval_key))
+        mine = _first(train_set, TRAIN_EVAL_CONTEXTS)
+        own.append(
+            (
+                evaluate(act, trial_params, mine, own_key).mean(),
+                evaluate(random_act, None, mine, own_key).mean(),
+            )
+        )
+        params.append(trial_params)
+    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own)
 
 
 def _like(contexts, template):
@@ -155,11 +198,17 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
     env = spec.make_env()
     template = plan.sets[trials[0].template].contexts
     keys = jax.numpy.stack([trial_key(spec.seed, t.id) for t in trials])
-    train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
-    test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
-    returns, steps, curves, params = _train_and_evaluate(
-        spec, trials[0].variant, env, template, keys, train_batch, test_batch
-    )
+    if spec.host:
+        returns, steps, curves, params, own = _host_train_and_evaluate(
+            plan, trials, env, template, keys
+        )
+    else:
+        train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
+        test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
+        same = all(t.test_set == t.train_set for t in trials)
+        returns, steps, curves, params, own = _train_and_evaluate(
+            spec, trials[0].variant, env, template, keys, train_batch, test_batch, same
+        )
     seconds = time.perf_counter() - start
     space = env.context_space
     eval_frames, curve_frames = [], []
@@ -195,4 +244,28 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
                 )
             )
     curves_frame = pd.concat(curve_frames, ignore_index=True) if curve_frames else pd.DataFrame()
-    return ChunkResult(pd.concat(eval_frames, ignore_index=True), curves_frame, params, seconds)
+    training = pd.DataFrame(
+        {
+            "trial": [t.id for t in trials],
+            "kind": [t.kind for t in trials],
+            "variant": [t.variant for t in trials],
+            "seed": [t.seed for t in trials],
+            "train_return": own[:, 0].astype(np.float64),
+            "random_return": own[:, 1].astype(np.float64),
+        }
+    )
+    checkpoint = {
+        "config": spec.agent_config(trials[0].variant),
+        "train_contexts": template,
+        "agent": spec.agent,
+        "env": spec.env,
+        "max_steps": spec.max_steps,
+    }
+    return ChunkResult(
+        pd.concat(eval_frames, ignore_index=True),
+        curves_frame,
+        params,
+        seconds,
+        training,
+        checkpoint,
+    )

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from contextrl.core.files import atomic_write
 
 
 def _pillow():
@@ -57,19 +58,41 @@ def write_gif(frames: Sequence[np.ndarray], path: str | os.PathLike, fps: int) -
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     images = [Image.fromarray(np.asarray(frame, np.uint8)) for frame in frames]
-    handle, temporary = tempfile.mkstemp(suffix=".gif", dir=path.parent)
-    os.close(handle)
-    try:
+    duration = max(20, round(1000 / fps))
+
+    def write(temporary: str) -> None:
         images[0].save(
             temporary,
             format="GIF",
             save_all=True,
             append_images=images[1:],
-            duration=max(20, round(1000 / fps)),
+            duration=duration,
             loop=0,
         )
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
+
+    atomic_write(path, write)
     return path
+
+
+ANIMATION_FORMATS = {".gif": "an animated GIF", ".png": "a still PNG of the first frame"}
+
+
+def animation_format(path: str | os.PathLike) -> str:
+    """The format the suffix of ``path`` names (a key of ``ANIMATION_FORMATS``), or a clear error."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in ANIMATION_FORMATS:
+        choices = ", ".join(f"{s} ({what})" for s, what in ANIMATION_FORMATS.items())
+        raise ValueError(f"--out {path}: unknown suffix {path.suffix!r}; choose one of {choices}")
+    return suffix
+
+
+def write_animation(frames: Sequence[np.ndarray], path: str | os.PathLike, fps: int) -> Path:
+    """Write ``frames`` in the format the suffix of ``path`` names (see ``ANIMATION_FORMATS``)."""
+    if animation_format(path) == ".gif":
+        return write_gif(frames, path, fps)
+    if not frames:
+        raise ValueError("write_animation needs at least one frame")
+    Image, _ = _pillow()
+    still = Image.fromarray(np.asarray(frames[0], np.uint8))
+    return atomic_write(Path(path), lambda temporary: still.save(temporary, format="PNG"))

@@ -1,0 +1,358 @@
+"""The hpo protocol: tune an agent's hyper-parameters on a context distribution with population-based
+bandits (PB2, Parker-Holder et al. 2020) on Ray Tune, as the paper tunes its agents.
+
+A population of agents trains on contexts drawn from ``train``; every round (``steps_per_round``
+environment steps) each member reports its mean return on the training contexts, and PB2 replaces the
+worst members by copies of the best with hyper-parameters chosen by a time-varying GP bandit within
+``search`` bounds. Members continue training their parameters (with a fresh optimiser) across rounds.
+The run keeps each member's hyper-parameter schedule, writes ``best.yaml`` (the best member's final
+agent options, for ``contextrl run ... --agent-config best.yaml``) and evaluates the best member on the
+test contexts. Ray runs locally by default, or on a cluster (``--address``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+import time
+import zlib
+from collections.abc import Mapping
+from pathlib import Path
+
+import jax
+import numpy as np
+import pandas as pd
+import yaml
+
+from contextrl.analysis import plots
+from contextrl.analysis.report import Section
+from contextrl.experiments.analyze import figure
+from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
+from contextrl.experiments.runs import write_parquet, write_text
+from contextrl.experiments.spec import (
+    CommonSpec,
+    SpecError,
+    _check_int,
+    _check_number,
+    register_protocol,
+    spec_to_dict,
+)
+
+# Searched when ``search`` is empty: the step sizes and the agent's main trade-off.
+DEFAULT_SEARCH = {
+    "ppo": {"learning_rate": [1e-5, 1e-2], "ent_coef": [0.0, 0.05], "clip_eps": [0.1, 0.4]},
+    "sac": {"policy_lr": [1e-5, 1e-2], "q_lr": [1e-5, 1e-2], "tau": [1e-3, 0.05]},
+    "dqn": {"learning_rate": [1e-5, 1e-2], "tau": [1e-3, 1.0]},
+    "c51": {"learning_rate": [1e-5, 1e-2], "tau": [1e-3, 1.0]},
+}
+BEST_FILE = "best.yaml"
+
+
+@register_protocol
+@dataclasses.dataclass(frozen=True)
+class HPOSpec(CommonSpec):
+    """PB2 over ``search`` (hyper-parameter → [low, high]) with a population trained on ``train``."""
+
+    protocol: str = "hpo"
+    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
+    test: dict | None = None  # None: held-out contexts from the training distribution
+    num_train_contexts: int = 64
+    num_test_contexts: int = 64
+    search: dict = dataclasses.field(default_factory=dict)  # {}: DEFAULT_SEARCH of the agent
+    population: int = 4
+    rounds: int = 8
+    steps_per_round: int = 20_000
+
+    def validate(self) -> None:
+        super().validate()
+        for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):
+            _check_int(field, getattr(self, field), 1)
+        _check_int("steps_per_round", self.steps_per_round, 1)
+        if len(self.variants) != 1:
+            raise SpecError(
+                f"variants: hpo tunes one visibility variant, got {list(self.variants)}"
+            )
+        if self.population < 2:
+            raise SpecError(f"population: PB2 needs at least 2 members, got {self.population}")
+        if self.host or not self.agent_entry().trained:
+            raise SpecError(
+                f"hpo tunes a trained agent on a JAX environment; got agent {self.agent} on {self.env}"
+            )
+        self.resolve_features("train", self.train)
+        if self.test is not None:
+            self.resolve_features("test", self.test)
+        bounds = self.bounds()
+        options = self.agent_entry().option_names()
+        for name, (low, high) in bounds.items():
+            if name not in options:
+                raise SpecError(f"search: {name!r} is not a {self.agent} option; valid: {options}")
+            _check_number(f"search.{name}", low)
+            _check_number(f"search.{name}", high)
+            if not low < high:
+                raise SpecError(f"search.{name}: empty range [{low}, {high}]")
+            for value in (low, high):
+                self._config({name: value})  # each bound must be a valid setting
+
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        search = self.search or DEFAULT_SEARCH.get(self.agent, {})
+        if not isinstance(search, Mapping) or not search:
+            raise SpecError(
+                f"search: give hyper-parameter bounds {{name: [low, high]}} for {self.agent}"
+            )
+        out = {}
+        for name, ends in search.items():
+            if not isinstance(ends, (list, tuple)) or len(ends) != 2:
+                raise SpecError(f"search.{name}: give [low, high], got {ends!r}")
+            out[name] = (ends[0], ends[1])
+        return out
+
+    def _config(self, hyper: Mapping[str, float]):
+        from contextrl.agents import ConfigError
+
+        options = {**self.agent_options, **hyper, "total_timesteps": self.steps_per_round}
+        try:
+            return self.agent_entry().config(self.env, options, self.variants[0])
+        except ConfigError as error:
+            raise SpecError(f"search: {error}") from None
+
+    def expand(self) -> tuple[dict, list]:
+        train = draw_set(self, "train", self.train, self.num_train_contexts, TRAIN_KEY)
+        test = draw_set(
+            self,
+            "test" if self.test else "train",
+            self.test or self.train,
+            self.num_test_contexts,
+            TEST_KEY,
+        )
+        return {"train": ContextSet("train", train), "test": ContextSet("test", test)}, []
+
+    def progress_row(self, run, plan, results, failures) -> dict:
+        return {
+            "population": self.population,
+            "rounds": self.rounds,
+            "finished": bool(run.finished()),
+            "seconds": round(sum(run.timings().values()), 1),
+        }
+
+    def execute(self, run, plan, *, executor, address, max_chunks, progress):
+        """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
+        from contextrl.experiments.executors import Summary
+
+        if run.finished():
+            return Summary([], [0], [], [], 0.0)
+        start = time.perf_counter()
+        schedule, best = _tune(self, run.path, address, progress)
+        training, evaluations = _evaluate_best(self, plan, best)
+        hyper = {name: float(best["config"][name]) for name in self.bounds()}
+        best_options = {**self.agent_options, **hyper}
+        write_text(run.path / BEST_FILE, yaml.safe_dump(best_options, sort_keys=True))
+        write_parquet(run.path / "curves" / "chunk-0000.parquet", schedule)
+        write_parquet(run.path / "training" / "chunk-0000.parquet", training)
+        seconds = time.perf_counter() - start
+        run.record_timing(0, seconds)
+        write_parquet(run.result_path(0), evaluations)
+        if progress:
+            print(f"best configuration: {run.path / BEST_FILE}", flush=True)
+        return Summary([0], [], [], [], seconds)
+
+    def sections(self, plan, results, curves) -> list[Section]:
+        return _sections(self, results, curves)
+
+
+def _trainable(config: dict) -> None:
+    """One population member on a Ray worker: train a round, report, checkpoint, repeat."""
+    from ray import tune
+
+    from contextrl.agents import evaluate, load_checkpoint, save_checkpoint
+    from contextrl.experiments.spec import parse_spec
+
+    spec = parse_spec(config["spec"])
+    env = spec.make_env()
+    train_set = spec.expand()[0]["train"].contexts
+    agent = spec.agent_entry()
+    hyper = {name: config[name] for name in spec.bounds()}
+    agent_config = spec._config(hyper)
+    train = jax.jit(agent.make_train(agent_config, env, train_set))
+    policy = agent.make_policy(agent_config, env, train_set)
+    score = jax.jit(lambda p, k: evaluate(policy, p, env, train_set, spec.eval_episodes, k).mean())
+    trial = tune.get_context().get_trial_id()
+    params, round_index = None, 0
+    checkpoint = tune.get_checkpoint()
+    if checkpoint is not None:
+        with checkpoint.as_directory() as folder:
+            params = load_checkpoint(Path(folder) / "params.npz")
+            round_index = int((Path(folder) / "round").read_text())
+    key = jax.random.fold_in(jax.random.key(spec.seed), zlib.crc32(trial.encode()) & 0x7FFFFFFF)
+    while True:
+        round_key = jax.random.fold_in(key, round_index)
+        train_key, eval_key = jax.random.split(round_key)
+        params = train(train_key, None, params).params
+        round_index += 1
+        mean_return = float(score(params, eval_key))
+        with tempfile.TemporaryDirectory() as folder:
+            save_checkpoint(Path(folder) / "params.npz", params)
+            (Path(folder) / "round").write_text(str(round_index))
+            tune.report(
+                {
+                    "return": mean_return,
+                    "env_steps": round_index * spec.steps_per_round,
+                    **{f"hp/{name}": float(value) for name, value in hyper.items()},
+                },
+                checkpoint=tune.Checkpoint.from_directory(folder),
+            )
+
+
+def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
+    """Run PB2; return the schedule (one row per member and round) and the best member's result."""
+    import ray
+    from ray import tune
+    from ray.tune.schedulers.pb2 import PB2
+
+    if not ray.is_initialized():
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    from ray.tune.search.basic_variant import BasicVariantGenerator
+
+    bounds = spec.bounds()
+    scheduler = PB2(
+        time_attr="training_iteration",
+        perturbation_interval=1,
+        hyperparam_bounds={name: list(ends) for name, ends in bounds.items()},
+        quantile_fraction=0.5 if spec.population < 4 else 0.25,
+        log_config=False,
+    )
+    tuner = tune.Tuner(
+        tune.with_resources(_trainable, {"cpu": 1}),
+        param_space={
+            "spec": spec_to_dict(spec),
+            **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
+        },
+        tune_config=tune.TuneConfig(
+            scheduler=scheduler,
+            search_alg=BasicVariantGenerator(random_state=spec.seed),
+            metric="return",
+            mode="max",
+            num_samples=spec.population,
+        ),
+        run_config=tune.RunConfig(
+            name="pb2",
+            storage_path=str((path / "ray").resolve()),
+            stop={"training_iteration": spec.rounds},
+            verbose=1 if progress else 0,
+        ),
+    )
+    grid = tuner.fit()
+    errors = [str(error) for error in grid.errors]
+    if errors:
+        raise RuntimeError(f"PB2 members failed: {errors[0]}")
+    rows = []
+    for member, result in enumerate(grid):
+        frame = result.metrics_dataframe
+        for _, row in frame.iterrows():
+            rows.append(
+                {
+                    "trial": f"member-{member}",
+                    "kind": "pb2",
+                    "variant": spec.variants[0],
+                    "seed": member,
+                    "step": int(row["env_steps"]),
+                    "episode_return": float(row["return"]),
+                    **{f"hp.{name}": float(row[f"hp/{name}"]) for name in bounds},
+                }
+            )
+    best = grid.get_best_result(metric="return", mode="max", scope="last")
+    with best.checkpoint.as_directory() as folder:
+        from contextrl.agents import load_checkpoint
+
+        params = load_checkpoint(Path(folder) / "params.npz")
+    return pd.DataFrame(rows), {"config": best.config, "params": params}
+
+
+def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The best member on the test contexts, and on its training contexts next to a random policy."""
+    from contextrl.agents import evaluate, get_agent
+
+    env = spec.make_env()
+    train, test = plan.sets["train"].contexts, plan.sets["test"].contexts
+    hyper = {name: best["config"][name] for name in spec.bounds()}
+    config = spec._config(hyper)
+    policy = spec.agent_entry().make_policy(config, env, train)
+    random_policy = get_agent("random").make_policy(None, env, train)
+    key = jax.random.fold_in(jax.random.key(spec.seed), TEST_KEY)
+    returns = np.asarray(evaluate(policy, best["params"], env, test, spec.eval_episodes, key))
+    own = jax.tree_util.tree_map(lambda leaf: leaf[:16], train)
+    trained = float(evaluate(policy, best["params"], env, own, spec.eval_episodes, key).mean())
+    random = float(evaluate(random_policy, None, env, own, spec.eval_episodes, key).mean())
+    space = env.context_space
+    evaluations = pd.DataFrame(
+        {
+            "trial": "best",
+            "kind": "best",
+            "variant": spec.variants[0],
+            "seed": 0,
+            "test_set": "test",
+            "context_index": np.arange(len(returns)),
+            **{f"ctx.{n}": np.asarray(getattr(test, n)) for n in space.names},
+            **{f"hp.{name}": float(value) for name, value in hyper.items()},
+            "return": returns.astype(np.float64),
+        }
+    )
+    training = pd.DataFrame(
+        {
+            "trial": ["best"],
+            "kind": ["best"],
+            "variant": [spec.variants[0]],
+            "seed": [0],
+            "train_return": [trained],
+            "random_return": [random],
+        }
+    )
+    return training, evaluations
+
+
+def _sections(spec: HPOSpec, results: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
+    bounds = spec.bounds()
+    best = {name: float(results[f"hp.{name}"].iloc[0]) for name in bounds}
+    rows = [
+        {"hyper-parameter": name, "best": value, "low": low, "high": high}
+        for (name, value), (low, high) in zip(best.items(), bounds.values(), strict=True)
+    ]
+    returns = results["return"].to_numpy()
+    text = [
+        f"PB2 on Ray Tune: {spec.population} {spec.agent} agents ({spec.variants[0]}) trained on "
+        f"{spec.num_train_contexts} contexts for {spec.rounds} rounds of {spec.steps_per_round} "
+        "steps; after each round the worst members take the parameters of the best and new "
+        "hyper-parameters from PB2's bandit. The best member's final configuration is in "
+        f"{BEST_FILE} (use it with: contextrl run PROTOCOL --agent-config {BEST_FILE}).",
+        f"Best member on {len(returns)} test contexts ({spec.eval_episodes} episodes each): mean "
+        f"return {returns.mean():.4g}, worst context {returns.min():.4g}, best {returns.max():.4g}.",
+    ]
+    figures = []
+    if not curves.empty:
+        schedules = {
+            name: {
+                trial: (group["step"].to_numpy(), group[f"hp.{name}"].to_numpy())
+                for trial, group in curves.groupby("trial")
+            }
+            for name in bounds
+        }
+        schedules["return"] = {
+            trial: (group["step"].to_numpy(), group["episode_return"].to_numpy())
+            for trial, group in curves.groupby("trial")
+        }
+        figures.append(
+            figure(
+                "hpo-schedules",
+                plots.schedules(schedules, xlabel="environment steps"),
+                "Each member's hyper-parameters and training-context return over training",
+            )
+        )
+    figures.append(
+        figure(
+            "hpo-test-ecdf",
+            plots.ecdf({"best configuration": returns}, title="Test returns"),
+            "eCDF of the best member's returns on the test contexts",
+        )
+    )
+    return [
+        Section("Hyper-parameter optimisation (PB2)", text, [("Best configuration", rows)], figures)
+    ]

@@ -1,0 +1,214 @@
+"""The sensitivity protocol (paper §6.1): an agent trained on the default context, evaluated with each
+feature scaled by a magnitude A × its default value."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+
+from contextrl.analysis import plots
+from contextrl.analysis.report import Section
+from contextrl.context.features import ContextError
+from contextrl.experiments.analyze import figure, training_figure
+from contextrl.experiments.protocols import ContextSet, Plan, grid
+from contextrl.experiments.spec import (
+    CommonSpec,
+    SpecError,
+    _as_tuple,
+    _check_number,
+    register_protocol,
+)
+
+DEFAULT_LABEL = "(default)"  # the feature label of the shared default-context evaluation
+
+
+@register_protocol
+@dataclasses.dataclass(frozen=True)
+class SensitivitySpec(CommonSpec):
+    """Train on the default context; evaluate with each feature scaled by A × default (paper §6.1)."""
+
+    protocol: str = "sensitivity"
+
+    features: tuple[str, ...] | str = "all"  # "all": every numeric feature with a non-zero default
+    magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
+
+    per_context_figures = False  # its own view: return against the magnitude A per feature
+
+    def validate(self) -> None:
+        super().validate()
+        if not self.magnitudes:
+            raise SpecError("magnitudes: give at least one magnitude A")
+        for magnitude in self.magnitudes:
+            _check_number("magnitudes", magnitude, 0.0)
+        self.scaled_values()  # refuses magnitudes that would be dropped
+
+    def scaled_values(self) -> tuple[list[tuple[str, float, float]], list[str]]:
+        """(feature, A, value) for every A ≠ 1 inside the feature's bounds, and notes of the pairs left
+        out. A magnitude that no feature can take is refused, and so is any that a feature named in
+        ``features`` cannot take: a value the user asked for is never dropped silently."""
+        space = self.space()
+        explicit = self.features != "all"
+        kept, skipped, usable = [], [], set()
+        for name in self.feature_names():
+            f = space.features[name]
+            for magnitude in self.magnitudes:
+                value = magnitude * f.default
+                if f.kind == "int":
+                    value = round(value)
+                if not f.lower <= value <= f.upper:
+                    if explicit:
+                        raise SpecError(
+                            f"magnitudes: A={magnitude:g} gives {name} = {value:g}, outside its "
+                            f"bounds [{f.lower:g}, {f.upper:g}]; remove it or choose A in "
+                            f"[{f.lower / f.default:.3g}, {f.upper / f.default:.3g}]"
+                        )
+                    skipped.append(f"{name} at A={magnitude:g}")
+                    continue
+                usable.add(magnitude)
+                if magnitude != 1.0:
+                    kept.append((name, float(magnitude), value))
+        unused = [m for m in self.magnitudes if m not in usable]
+        if unused:
+            raise SpecError(
+                f"magnitudes: {unused} put every feature outside its bounds; nothing would be "
+                "evaluated there"
+            )
+        return kept, skipped
+
+    vary_field = None  # --vary names the features to scale
+
+    @classmethod
+    def vary(cls, data: dict, items: list[str]) -> str | None:
+        """``--vary g --vary l`` names the features to scale, added to those a config names."""
+        existing = data.get("features")
+        if not isinstance(existing, (list, tuple)) or not existing:
+            data["features"] = list(items)  # replaces "all"
+            return None
+        data["features"] = list(dict.fromkeys([*existing, *items]))
+        kept = [name for name in existing if name not in items]
+        return (
+            f"--vary: features keeps {kept} from the config; now {data['features']}"
+            if kept
+            else None
+        )
+
+    def expand(self) -> tuple[dict, list]:
+        return _expand(self)
+
+    def sections(self, plan, results, curves) -> list[Section]:
+        return _sections(self, plan, results, curves)
+
+    def feature_names(self) -> tuple[str, ...]:
+        space = self.space()
+        if self.features == "all":
+            names = tuple(
+                n for n, f in space.features.items() if f.kind != "categorical" and f.default != 0
+            )
+        else:
+            try:
+                names = tuple(space.resolve(n) for n in _as_tuple(self.features))
+            except ContextError as error:
+                raise SpecError(f"features: {error}") from None
+            for name in names:
+                f = space.features[name]
+                if f.kind == "categorical" or f.default == 0:
+                    raise SpecError(f"features: {name} cannot be scaled (categorical or default 0)")
+        if not names:
+            raise SpecError("features: no feature to vary")
+        return names
+
+
+def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
+    space = spec.space()
+    default = space.default()
+    kept, _ = spec.scaled_values()
+    # one evaluation of the default context (A = 1 for every feature), then each feature scaled
+    contexts = [default] + [default.replace(**{name: value}) for name, _, value in kept]
+    sets = {
+        "default": ContextSet("default", space.stack([default])),
+        "scaled": ContextSet(
+            "scaled",
+            space.stack(contexts),
+            {
+                "feature": [DEFAULT_LABEL] + [name for name, _, _ in kept],
+                "magnitude": [1.0] + [magnitude for _, magnitude, _ in kept],
+            },
+        ),
+    }
+    return sets, grid(spec, "default", "default", "scaled")
+
+
+def magnitude_lines(results: pd.DataFrame) -> dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """Per feature: {variant: (magnitudes, returns shaped seeds × magnitudes)}; the one default
+    evaluation is every feature's A = 1 point."""
+    default = results[results["feature"] == DEFAULT_LABEL]
+    out = {}
+    for feature in [f for f in results["feature"].unique() if f != DEFAULT_LABEL]:
+        rows = pd.concat([results[results["feature"] == feature], default])
+        lines = {}
+        for variant, group in rows.groupby("variant", sort=False):
+            wide = group.pivot_table(
+                index="seed", columns="magnitude", values="return", aggfunc="mean"
+            ).dropna(axis=1)
+            lines[variant] = (wide.columns.to_numpy(float), wide.to_numpy(float))
+        out[feature] = lines
+    return out
+
+
+def _sections(spec: SensitivitySpec, plan: Plan, results: pd.DataFrame, curves) -> list[Section]:
+    default_return = float(results.loc[results["feature"] == DEFAULT_LABEL, "return"].mean())
+    by_feature = magnitude_lines(results)
+    rows = []
+    for feature, lines in by_feature.items():
+        x, runs = next(iter(lines.values()))
+        means = dict(zip(x, runs.mean(axis=0), strict=True))
+        worst = min(means, key=means.get)
+        rows.append(
+            {
+                "feature": feature,
+                "return at A=1 (default context)": default_return,
+                "worst A": worst,
+                "return at worst A": means[worst],
+                "mean over A": float(np.mean(list(means.values()))),
+            }
+        )
+    figures = [
+        figure(
+            f"sensitivity-{feature}",
+            plots.return_vs_feature(
+                lines,
+                xlabel=f"A (× default {feature})",
+                train_range=(1.0, 1.0),
+                title=f"{spec.env}: {feature}",
+                seed=spec.seed,
+            ),
+            f"Mean test return against the magnitude A of {feature} with a 95% band over seeds; "
+            "the grey line is the training context (A = 1, shared by every feature)",
+        )
+        for feature, lines in by_feature.items()
+    ]
+    returns = {
+        feature: {m: group["return"].to_numpy() for m, group in rows.groupby("magnitude")}
+        for feature, rows in results.groupby("feature", sort=False)
+        if feature != DEFAULT_LABEL
+    }
+    figures.append(
+        figure(
+            "sensitivity-ecdf",
+            plots.sensitivity_ecdfs(returns),
+            "eCDF of test returns per feature and magnitude A (the scaled contexts only)",
+        )
+    )
+    if not curves.empty:
+        figures.append(training_figure(spec, curves))
+    _, skipped = spec.scaled_values()
+    text = [
+        f"A {spec.agent} agent trained on the default context (hidden), evaluated once on the "
+        f"default context and with each feature scaled by A ∈ {list(spec.magnitudes)} × default; "
+        f"{spec.seeds} seeds × {spec.eval_episodes} episodes per context."
+    ]
+    if skipped:
+        text.append(f"Outside the feature bounds, so not evaluated: {', '.join(skipped)}.")
+    return [Section("Sensitivity", text, [("Return per feature", rows)], figures)]

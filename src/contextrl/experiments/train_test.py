@@ -1,0 +1,281 @@
+"""Kirk et al.'s train/test protocol (paper §6.4): training modes A, B, C over two features and a
+test grid labelled interpolation, combinatorial interpolation or extrapolation."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from contextrl.analysis import metrics, plots
+from contextrl.analysis.intervals import interval_estimates
+from contextrl.analysis.report import Section
+from contextrl.context.distributions import Uniform, draw
+from contextrl.context.features import ContextError
+from contextrl.experiments.analyze import curves_by_variant, figure, score_matrix
+from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, grid
+from contextrl.experiments.spec import (
+    CommonSpec,
+    SpecError,
+    _check_int,
+    _check_number,
+    load_yaml,
+    merge_features,
+    register_protocol,
+)
+
+REGIONS = ("interpolation", "combinatorial", "extrapolation (one)", "extrapolation (both)")
+
+
+@register_protocol
+@dataclasses.dataclass(frozen=True)
+class TrainTestSpec(CommonSpec):
+    """Kirk et al.'s modes over two features (paper §6.4).
+
+    ``train_box``/``test_box`` map each of the two features to [low, high]. Mode A trains on the whole
+    train box, B on an L-shaped band of width ``band`` (a fraction of each range) along the low edges,
+    C on the two low edges themselves (single values per feature). Test contexts cover the test box,
+    which must reach beyond the train box on both features so every region is tested.
+    """
+
+    protocol: str = "train_test"
+    variants: tuple[str, ...] = ("hidden", "concat_varying")
+    modes: tuple[str, ...] = ("A", "B", "C")
+    train_box: dict = dataclasses.field(
+        default_factory=lambda: {"length": [0.25, 0.75], "tau": [0.015, 0.025]}
+    )
+    test_box: dict = dataclasses.field(
+        default_factory=lambda: {"length": [0.05, 1.5], "tau": [0.005, 0.05]}
+    )
+    band: float = 0.1
+    num_train_contexts: int = 64
+    num_test_contexts: int = 144
+
+    draws_heatmap = True  # its sections draw a heat map per mode and variant
+
+    def validate(self) -> None:
+        super().validate()
+        for mode in self.modes:
+            if mode not in ("A", "B", "C"):
+                raise SpecError(f"modes: unknown mode {mode!r}; choose from ['A', 'B', 'C']")
+        if not self.modes:
+            raise SpecError("modes: give at least one of ['A', 'B', 'C']")
+        _check_int("num_train_contexts", self.num_train_contexts, 1)
+        _check_int("num_test_contexts", self.num_test_contexts, 4)
+        side = int(np.sqrt(self.num_test_contexts))
+        if side * side != self.num_test_contexts:
+            raise SpecError(
+                f"num_test_contexts: the test contexts form a side × side grid, and "
+                f"{self.num_test_contexts} is not a square; use {side * side} or {(side + 1) ** 2}"
+            )
+        _check_number("band", self.band, 0.0)
+        if not self.band < 1.0:
+            raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
+        train, test = self.boxes()
+        for name in train:
+            (tl, th), (sl, sh) = train[name], test[name]
+            if not (sl < tl and th < sh):
+                raise SpecError(
+                    f"test_box/train_box: test range {[sl, sh]} of {name} overlaps the train range "
+                    f"{[tl, th]} without reaching beyond it on both sides; the protocol needs "
+                    "extrapolation regions"
+                )
+
+    vary_field = "train_box"  # --vary length=[0.25,0.75] tau=[0.015,0.025]
+
+    @classmethod
+    def vary(cls, data: dict, items: list[str]) -> str | None:
+        boxes = {}
+        for item in items:
+            name, sep, value = item.partition("=")
+            if not sep or not name:
+                raise SpecError(f"--vary: expected FEATURE=[LOW,HIGH], got {item!r}")
+            boxes[name] = load_yaml(value, f"--vary {name}")
+        return merge_features(data, "train_box", boxes)
+
+    def expand(self) -> tuple[dict, list]:
+        return _expand(self)
+
+    def sections(self, plan, results, curves) -> list[Section]:
+        return _sections(self, plan, results, curves)
+
+    def boxes(self) -> tuple[dict, dict]:
+        """Canonical feature names → (low, high), checked against the feature bounds."""
+        space = self.space()
+        out = []
+        for field, box in (("train_box", self.train_box), ("test_box", self.test_box)):
+            if not isinstance(box, Mapping) or len(box) != 2:
+                raise SpecError(f"{field}: give exactly two features with [low, high], got {box!r}")
+            resolved = {}
+            for name, ends in box.items():
+                try:
+                    canonical = space.resolve(name)
+                except ContextError as error:
+                    raise SpecError(f"{field}: {error}") from None
+                if not isinstance(ends, (list, tuple)) or len(ends) != 2:
+                    raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
+                low, high = (_check_number(f"{field}.{name}", v) for v in ends)
+                if not low < high:
+                    raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
+                try:
+                    Uniform(low, high).check(space.features[canonical])
+                except ContextError as error:
+                    raise SpecError(f"{field}: {error}") from None
+                resolved[canonical] = (low, high)
+            out.append(resolved)
+        if list(out[0]) != list(out[1]):
+            raise SpecError(
+                f"train_box and test_box must name the same two features in the same order, "
+                f"got {list(out[0])} and {list(out[1])}"
+            )
+        return out[0], out[1]
+
+
+def region_of(
+    point: Sequence[float], train_box: Sequence[tuple[float, float]], mode: str, band: float
+):
+    """Kirk et al.'s region of a test context relative to a training set of ``mode``."""
+    inside = [low <= v <= high for v, (low, high) in zip(point, train_box, strict=True)]
+    if not any(inside):
+        return REGIONS[3]
+    if not all(inside):
+        return REGIONS[2]
+    if mode == "A":
+        return REGIONS[0]
+    width = [band * (high - low) if mode == "B" else 0.0 for low, high in train_box]
+    on_support = any(v <= low + w for v, (low, _), w in zip(point, train_box, width, strict=True))
+    return REGIONS[0] if on_support else REGIONS[1]
+
+
+def train_test_contexts(spec: TrainTestSpec, mode: str, key) -> Any:
+    """Training contexts of one mode; every draw is direct (no rejection loop), so it always ends."""
+    train_box, _ = spec.boxes()
+    space = spec.space()
+    (name_x, (x0, x1)), (name_y, (y0, y1)) = train_box.items()
+    n = spec.num_train_contexts
+    keys = jax.random.split(key, 4)
+    x = jax.random.uniform(keys[0], (n,), minval=x0, maxval=x1)
+    y = jax.random.uniform(keys[1], (n,), minval=y0, maxval=y1)
+    if mode != "A":
+        # An L-shaped set: half the contexts on the low-x edge band, half on the low-y edge band.
+        fraction = spec.band if mode == "B" else 0.0
+        on_x_edge = jax.random.bernoulli(keys[2], 0.5, (n,))
+        thin_x = x0 + fraction * (x1 - x0) * jax.random.uniform(keys[3], (n,))
+        thin_y = y0 + fraction * (y1 - y0) * jax.random.uniform(keys[3], (n,))
+        x = jnp.where(on_x_edge, thin_x, x)
+        y = jnp.where(on_x_edge, y, thin_y)
+    defaults = draw(space, {}, n, key)
+    return defaults.replace(**{name_x: np.asarray(x), name_y: np.asarray(y)})
+
+
+def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
+    train_box, test_box = spec.boxes()
+    space = spec.space()
+    (name_x, (sx0, sx1)), (name_y, (sy0, sy1)) = test_box.items()
+    side = int(np.floor(np.sqrt(spec.num_test_contexts)))
+    gx, gy = np.meshgrid(np.linspace(sx0, sx1, side), np.linspace(sy0, sy1, side), indexing="ij")
+    test = draw(space, {}, gx.size, jax.random.key(0)).replace(
+        **{name_x: gx.ravel().astype(np.float32), name_y: gy.ravel().astype(np.float32)}
+    )
+    sets = {}
+    trials = []
+    boxes = list(train_box.values())
+    for mode in spec.modes:
+        key = jax.random.fold_in(jax.random.key(spec.seed), TRAIN_KEY + ord(mode))
+        regions = [
+            region_of((px, py), boxes, mode, spec.band)
+            for px, py in zip(gx.ravel(), gy.ravel(), strict=True)
+        ]
+        sets[f"train-{mode}"] = ContextSet(f"train-{mode}", train_test_contexts(spec, mode, key))
+        sets[f"test-{mode}"] = ContextSet(
+            f"test-{mode}", test, {"region": regions, "mode": [mode] * len(regions)}
+        )
+        trials += grid(spec, f"mode{mode}", f"train-{mode}", f"test-{mode}")
+    return sets, trials
+
+
+def _sections(spec: TrainTestSpec, plan: Plan, results: pd.DataFrame, curves: pd.DataFrame):
+    train_box, _ = spec.boxes()
+    (name_x, (x0, x1)), (name_y, (y0, y1)) = train_box.items()
+    figures, rows = [], []
+    low, high = float(results["return"].min()), float(results["return"].max())
+    for mode in spec.modes:
+        train = plan.sets[f"train-{mode}"].contexts
+        points = np.stack(
+            [np.asarray(getattr(train, name_x)), np.asarray(getattr(train, name_y))], axis=1
+        )
+        for variant in spec.variants:
+            group = results[(results["kind"] == f"mode{mode}") & (results["variant"] == variant)]
+            if group.empty:
+                continue
+            cells = group.groupby("context_index").agg(
+                x=(f"ctx.{name_x}", "first"), y=(f"ctx.{name_y}", "first"), value=("return", "mean")
+            )
+            figures.append(
+                figure(
+                    f"heatmap-{mode}-{variant}",
+                    plots.heatmap(
+                        cells["x"],
+                        cells["y"],
+                        cells["value"],
+                        xlabel=name_x,
+                        ylabel=name_y,
+                        regions=[(x0, x1, y0, y1)],
+                        train_points=points,
+                        bins=int(np.sqrt(len(cells))),
+                        title=f"mode {mode}, {variant}",
+                        vmin=low,
+                        vmax=high,
+                    ),
+                    f"Mean test return over the context plane, mode {mode}, {variant}; the red box is "
+                    "the training range, red dots the training contexts",
+                )
+            )
+            for region in REGIONS:
+                subset = group[group["region"] == region]
+                if subset.empty:
+                    continue
+                interval = interval_estimates(
+                    {"r": score_matrix(subset)},
+                    {"mean": metrics.aggregate_mean},
+                    reps=spec.bootstrap_reps,
+                    seed=spec.seed,
+                )["r"]["mean"]
+                rows.append(
+                    {
+                        "mode": mode,
+                        "variant": variant,
+                        "region": region,
+                        "mean return": str(interval),
+                    }
+                )
+    text = [
+        f"Kirk et al.'s evaluation protocol over {name_x} × {name_y}: mode A trains on the whole box, "
+        f"B on an L-shaped band ({spec.band:.0%} of each range) along its low edges, C on the two "
+        "low edges only. Test contexts form a grid over the test box; each is labelled interpolation, "
+        "combinatorial interpolation (inside the box, off the training support) or extrapolation in "
+        "one or both features."
+    ]
+    sections = [
+        Section("Train/test modes", text, [("Mean return per region (95% CI)", rows)], figures)
+    ]
+    if not curves.empty:
+        steps, by_variant = curves_by_variant(curves)
+        sections.append(
+            Section(
+                "Training",
+                figures=[
+                    figure(
+                        "training-curves",
+                        plots.training_curves(steps, by_variant, title="Training", seed=spec.seed),
+                        "Mean training return (all modes) with a 95% bootstrap band",
+                    )
+                ],
+            )
+        )
+    return sections

@@ -1,0 +1,106 @@
+"""The visibility protocol (paper §6.3): agents that see the context in different ways (hidden,
+concatenated, gated) trained on the same contexts and tested on held-out ones."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pandas as pd
+
+from contextrl.analysis import metrics, plots
+from contextrl.analysis.intervals import interval_estimates, paired_bootstrap_ci
+from contextrl.analysis.report import Section
+from contextrl.experiments.analyze import (
+    CI_METRICS,
+    curves_by_variant,
+    figure,
+    interval_rows,
+    score_matrix,
+)
+from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, Plan, draw_set, grid
+from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
+
+
+@register_protocol
+@dataclasses.dataclass(frozen=True)
+class VisibilitySpec(CommonSpec):
+    """Hidden vs visible context: training curves and returns on held-out contexts (paper §6.3)."""
+
+    protocol: str = "visibility"
+
+    variants: tuple[str, ...] = ("hidden", "concat_all", "concat_varying")
+    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
+    test: dict | None = None  # None: held-out contexts from the training distribution
+    num_train_contexts: int = 64
+    num_test_contexts: int = 64
+
+    def validate(self) -> None:
+        super().validate()
+        _check_int("num_train_contexts", self.num_train_contexts, 1)
+        _check_int("num_test_contexts", self.num_test_contexts, 1)
+        self.resolve_features("train", self.train)
+        if self.test is not None:
+            self.resolve_features("test", self.test)
+
+    def expand(self) -> tuple[dict, list]:
+        return _expand(self)
+
+    def sections(self, plan, results, curves) -> list[Section]:
+        return _sections(self, plan, results, curves)
+
+
+def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
+    train = draw_set(spec, "train", spec.train, spec.num_train_contexts, TRAIN_KEY)
+    test = draw_set(
+        spec,
+        "test" if spec.test else "train",
+        spec.test or spec.train,
+        spec.num_test_contexts,
+        TEST_KEY,
+    )
+    sets = {"train": ContextSet("train", train), "test": ContextSet("test", test)}
+    return sets, grid(spec, "visibility", "train", "test")
+
+
+def _sections(spec: VisibilitySpec, plan: Plan, results: pd.DataFrame, curves: pd.DataFrame):
+    scores = {
+        variant: score_matrix(group) for variant, group in results.groupby("variant", sort=False)
+    }
+    cis = interval_estimates(scores, CI_METRICS, reps=spec.bootstrap_reps, seed=spec.seed)
+    text = [
+        f"{spec.agent} agents with context visibility {list(spec.variants)} trained on "
+        f"{spec.num_train_contexts} contexts and tested on {spec.num_test_contexts} held-out contexts "
+        f"({spec.seeds} seeds, {spec.eval_episodes} episodes each)."
+    ]
+    rows = interval_rows(cis)
+    if "hidden" in scores:
+        for name, matrix in scores.items():
+            if name != "hidden" and matrix.shape[1] == scores["hidden"].shape[1]:
+                poi = paired_bootstrap_ci(
+                    matrix,
+                    scores["hidden"],
+                    metrics.probability_of_improvement,
+                    reps=spec.bootstrap_reps,
+                    seed=spec.seed,
+                )
+                text.append(f"P({name} > hidden) = {poi}")
+    figures = []
+    if not curves.empty:
+        steps, by_variant = curves_by_variant(curves)
+        figures.append(
+            figure(
+                "training-curves",
+                plots.training_curves(steps, by_variant, title="Training", seed=spec.seed),
+                "Mean training return with a 95% bootstrap band over seeds",
+            )
+        )
+    figures += [
+        figure("test-ecdf", plots.ecdf(scores, title="Test returns"), "eCDF of test returns"),
+        figure("test-histogram", plots.histograms(scores, title="Test returns"), "Test returns"),
+        figure(
+            "test-intervals",
+            plots.intervals(cis, title="Test return (95% CI)"),
+            "Aggregate test return with stratified-bootstrap CIs",
+        ),
+    ]
+    return [Section("Context visibility", text, [("Test return", rows)], figures)]
