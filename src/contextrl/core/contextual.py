@@ -114,7 +114,11 @@ class ContextualEnv:
             jnp.asarray(num_copies, jnp.int32),
             jnp.asarray(run_key_bits, jnp.uint32),
         )
-        info = {"context_id": state.context_id, "next_context_id": state.context_id}
+        info = {
+            **timestep.info,
+            "context_id": state.context_id,
+            "next_context_id": state.context_id,
+        }
         return state, dataclasses.replace(timestep, info=info)
 
     def reset(
@@ -144,7 +148,11 @@ class ContextualEnv:
             step = jnp.asarray(state.env_state.time + 1, jnp.uint32)
             step_key = jax.random.fold_in(episode, jnp.uint32(0) - step)  # 2**32 - t
         env_state, timestep = self.env.advance(step_key, state.env_state, action, state.context)
-        info = {"context_id": state.context_id, "next_context_id": state.context_id}
+        info = {
+            **timestep.info,
+            "context_id": state.context_id,
+            "next_context_id": state.context_id,
+        }
         return dataclasses.replace(state, env_state=env_state), dataclasses.replace(
             timestep, info=info
         )
@@ -153,7 +161,11 @@ class ContextualEnv:
     def _settle(done, advanced, timestep, restarted, start) -> tuple[ContextualState, TimeStep]:
         """Same-step auto-reset: where ``done``, the restarted state and its first observation."""
         state = tree_where(done, restarted, advanced)
-        info = {"context_id": advanced.context_id, "next_context_id": state.context_id}
+        info = {
+            **timestep.info,
+            "context_id": advanced.context_id,
+            "next_context_id": state.context_id,
+        }
         obs = jnp.where(done, start.obs, timestep.obs)
         return state, dataclasses.replace(timestep, obs=obs, info=info)
 
@@ -203,7 +215,11 @@ class ContextualEnv:
             new_state, obs = restart_all()
         else:
             new_state, obs = jax.lax.cond(done.sum() <= room, restart_ended, restart_all)
-        info = {"context_id": advanced.context_id, "next_context_id": new_state.context_id}
+        info = {
+            **timestep.info,
+            "context_id": advanced.context_id,
+            "next_context_id": new_state.context_id,
+        }
         return new_state, dataclasses.replace(timestep, obs=obs, info=info)
 
     def _next_episode(self, run_key_bits, episode, num_copies):

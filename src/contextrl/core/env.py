@@ -101,6 +101,10 @@ class Env:
         asks whether a feature changed the start state or the next state; by default the whole state."""
         return state
 
+    def step_info(self, state, context) -> dict:
+        """Facts about ``state`` for ``TimeStep.info`` (after a step: the state before any reset)."""
+        return {}
+
     @property
     def action_space(self) -> Discrete | Box:
         raise NotImplementedError
@@ -159,7 +163,9 @@ class Env:
         obs = self._observation(physics, context, obs_key)
         zero = jnp.zeros((), jnp.float32)
         false = jnp.zeros((), bool)
-        return EnvState(physics, jnp.zeros((), jnp.int32)), TimeStep(obs, zero, false, false, obs)
+        return EnvState(physics, jnp.zeros((), jnp.int32)), TimeStep(
+            obs, zero, false, false, obs, self.step_info(physics, context)
+        )
 
     def step(self, key, state: EnvState, action, context) -> tuple[EnvState, TimeStep]:
         """One step; if the episode ends, the same call resets it under the same context."""
@@ -191,6 +197,7 @@ class Env:
             jnp.asarray(terminated, bool),
             time >= self.max_steps,
             obs,
+            self.step_info(physics, context),
         )
 
     def step_then_reset(

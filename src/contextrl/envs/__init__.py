@@ -4,7 +4,7 @@ import functools
 import importlib.util
 
 from contextrl.core.registry import register
-from contextrl.envs import classic_control
+from contextrl.envs import classic_control, platformer
 
 for _env in (
     classic_control.CartPole,
@@ -14,6 +14,8 @@ for _env in (
     classic_control.Acrobot,
 ):
     register(_env.__name__, _env, family="classic_control", aliases=(f"CARL{_env.__name__}",))
+
+register("Platformer", platformer.Platformer, family="platformer", aliases=("CARLMarioEnv",))
 
 DMC_ENVIRONMENTS = ("DmcWalker", "DmcQuadruped", "DmcFish", "DmcFinger", "DmcPointMass")
 

@@ -9,6 +9,9 @@ import numpy as np
 
 from contextrl.render.canvas import Canvas
 from contextrl.render.classic_control import RENDERERS
+from contextrl.render.platformer import PlatformerRenderer
+
+RENDERERS = {**RENDERERS, "Platformer": PlatformerRenderer()}
 
 FRAME_WIDTH = 600
 
