@@ -127,6 +127,13 @@ def environments_markdown() -> str:
             "",
             markdown_table(feature_rows(env.context_space)),
         ]
+        if env.context_space.rules:
+            parts += [
+                "",
+                "Contexts must also satisfy (checked on every context and every spec):",
+                "",
+            ]
+            parts += [f"- `{rule.requirement}`: {rule.why}" for rule in env.context_space.rules]
     return "\n".join(parts) + "\n"
 
 
