@@ -139,14 +139,15 @@ def compare_with_brax(names, n: int, steps: int, rounds: int) -> None:
         )
 
 
-def steps_for(name: str, n: int, budget: int) -> int:
-    """Steps per timed call: about ``budget`` copy-steps (≥ 10, ≤ 100), a tenth of it on the humanoids."""
-    if name.startswith("Humanoid"):
-        budget //= 10
-    return max(10, min(100, budget // n))
+def steps_for(n: int, rate: float | None, seconds: float) -> int:
+    """Steps per timed call: 20 at first, then about ``seconds`` at the rate of the previous size
+    (at least 5, at most 100): MJX tasks differ by 100x in speed on a CPU."""
+    if rate is None:
+        return 20
+    return int(max(5, min(100, rate * seconds / n)))
 
 
-def table(names, sizes, budget: int) -> None:
+def table(names, sizes, seconds: float) -> None:
     print(
         "\nEvery environment, each copy with its own context, through ContextualEnv.step_copies (MJX)"
     )
@@ -156,17 +157,18 @@ def table(names, sizes, budget: int) -> None:
     )
     for name in names:
         env = getattr(family, name)()
+        rate = None
         for n in sizes:
-            steps = steps_for(name, n, budget)
+            steps = steps_for(n, rate, seconds)
             run = contextual_rollout(env, n, steps)
             first, second = (per_copy_contexts(env, n, jax.random.key(k)) for k in (1, 2))
             compile_s = first_call(run, first)
             before = len(compilations)
             best = min(seconds_of(run, jax.random.key(k), c) for k, c in ((1, second), (2, first)))
+            rate = n * steps / best
             recompiles = len(compilations) - before + run._cache_size() - 1
             print(
-                f"{name:>24} {n:>7} {steps:>6} {compile_s:>10.1f} {n * steps / best:>10.3g}"
-                f" {recompiles:>27}",
+                f"{name:>24} {n:>7} {steps:>6} {compile_s:>10.1f} {rate:>10.3g} {recompiles:>27}",
                 flush=True,
             )
 
@@ -175,9 +177,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", default=",".join(c.__name__ for c in family.ENVIRONMENTS))
     parser.add_argument("--sizes", default=",".join(map(str, SIZES)))
-    parser.add_argument(
-        "--budget", type=int, default=20_000, help="copy-steps per timed call (10–100 steps each)"
-    )
+    parser.add_argument("--seconds", type=float, default=2.0, help="aimed length of a timed call")
     parser.add_argument("--compare-steps", type=int, default=20)
     parser.add_argument("--rounds", type=int, default=3, help="alternating timed calls per side")
     parser.add_argument("--skip-compare", action="store_true")
@@ -194,7 +194,7 @@ def main() -> None:
         compared = [n for n in ("Ant", "HalfCheetah") if n in names]
         compare_with_brax(compared, 256, args.compare_steps, args.rounds)
     if not args.skip_table:
-        table(names, [int(s) for s in args.sizes.split(",")], args.budget)
+        table(names, [int(s) for s in args.sizes.split(",")], args.seconds)
     print(f"\nload average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
