@@ -64,6 +64,8 @@ class HPOSpec(CommonSpec):
     rounds: int = 8
     steps_per_round: int = 20_000
 
+    runs_on_ray = True
+
     def validate(self) -> None:
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):

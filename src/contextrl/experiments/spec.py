@@ -175,6 +175,7 @@ class CommonSpec:
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
+    runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
 
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
