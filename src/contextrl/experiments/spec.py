@@ -186,6 +186,7 @@ class CommonSpec:
         if self.max_steps is not None:
             _check_int("max_steps", self.max_steps, 1)
         if not self.trains_agents:
+            self._refuse_agent_fields()
             return
         if not isinstance(self.agent_options, Mapping):
             raise SpecError(agent_options_error(self.agent_options))
@@ -208,6 +209,19 @@ class CommonSpec:
                 agent.config(self.env, self.agent_options, variant)
         except ConfigError as error:
             raise SpecError(f"agent_options: {error}") from None
+
+    def _refuse_agent_fields(self) -> None:
+        """A protocol without agents refuses an agent, environment or variants it would ignore."""
+        defaults = {f.name: f for f in dataclasses.fields(self)}
+        for name in ("env", "agent", "agent_options", "variants", "max_steps"):
+            field = defaults[name]
+            default = field.default_factory() if callable(field.default_factory) else field.default
+            value = getattr(self, name)
+            if value != default and not (name == "variants" and tuple(value) == default):
+                raise SpecError(
+                    f"{name}: the {self.protocol} protocol trains no agent on an environment, so "
+                    f"{name}={value!r} does not apply; leave it out"
+                )
 
     def agent_entry(self):
         """The registered agent of this spec."""
