@@ -190,6 +190,10 @@ def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tm
             ["sensitivity", "--env", "LunarLander", "--agent", "sac"],
             "the sac agent acts in continuous action spaces; LunarLander has Discrete(4)",
         ),
+        (
+            ["visibility", "--agent", "random", "--address", "auto"],
+            "--address auto: only --executor ray and the hpo protocol use a Ray cluster",
+        ),
     ],
 )
 def test_meaningless_combinations_are_refused_in_one_line(argv, message, tmp_path, capsys):

@@ -142,12 +142,6 @@ def test_ray_address_without_a_cluster_is_one_line_and_makes_nothing(argv, tmp_p
     assert not (tmp_path / "runs").exists()
 
 
-def test_address_without_ray_is_refused(tmp_path):
-    result = contextrl("run", "visibility", *TINY_RANDOM, "--address", "auto", cwd=tmp_path)
-    one_line_error(result, "--address auto: only --executor ray and the hpo protocol use a Ray")
-    assert not (tmp_path / "runs").exists()
-
-
 def test_yaml_numbers_vary_merge_and_dry_run(tmp_path):
     """``1e5`` is a number; --vary replaces one feature of the config and says so; the dry run counts
     trials, chunks and steps (checked by hand) and writes nothing."""
