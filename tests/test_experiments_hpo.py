@@ -12,6 +12,9 @@ from contextrl.experiments.commands import main as commands_main
 BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
 
 
+pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
+
+
 def test_hpo_search_bounds_are_checked_before_anything_runs():
     with pytest.raises(SpecError, match="'lr' is not a ppo option"):
         parse_spec({"protocol": "hpo", "search": {"lr": [0.1, 0.2]}})

@@ -79,6 +79,9 @@ CASES = [
 ]
 
 
+pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
+
+
 def agent_options(agent: str) -> list[str]:
     from contextrl.agents import get_agent
 
