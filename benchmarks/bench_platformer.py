@@ -16,7 +16,7 @@ import time
 
 import jax
 import jax.numpy as jnp
-from _scan import CORES, batched_rollout, random_rollout, steps_per_second
+from _scan import CORES, batched_rollout, observing, random_rollout, steps_per_second
 
 import contextrl as crl
 from contextrl.envs.platformer import platformer
@@ -52,15 +52,7 @@ def measure(env, n, steps):
 
 def measure_split(env, n, steps):
     """Steps/s of ``jax.vmap(env.step)`` with the copies split over every core (one device each)."""
-
-    def reset(key, ctx):
-        state, ts = env.reset(key, ctx)
-        return state, ts.obs
-
-    def step(key, state, action, ctx):
-        state, ts = env.step(key, state, action, ctx)
-        return state, ts.obs
-
+    reset, step = observing(env)
     run = random_rollout(reset, step, env.action_space.sample, levels(env, n), steps, CORES)
     return steps_per_second(run, n, steps)[1]
 
