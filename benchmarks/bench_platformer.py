@@ -119,7 +119,7 @@ def main() -> None:
     print("\nPixel observations (84×84 RGB drawn in JAX), every copy on its own level")
     print(f"{'copies':>8} {'compile s':>10} {'frames/s':>12} {'× CARL Mario':>14}")
     for n in (256, 4096):
-        compile_s, rate = measure(pixels, n, max(10, steps // 10))
+        compile_s, rate = measure(pixels, n, max(4, steps // 40))
         print(
             f"{n:>8} {compile_s:>10.1f} {rate:>12.3g} {rate / CARL_MARIO_STEPS_PER_SECOND:>14.0f}"
         )
