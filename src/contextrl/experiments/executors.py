@@ -123,7 +123,8 @@ def run_processes(
     """Run the unfinished chunks on ``workers`` local processes (default: one per CPU core).
 
     Each worker compiles once per chunk shape and keeps training chunks; results are written here, in
-    the order they finish.
+    the order they finish. Workers are spawned, so a script that calls this needs the usual
+    ``if __name__ == "__main__":`` guard.
     """
     start = time.perf_counter()
     todo, skipped = _pending(run, plan, max_chunks)
