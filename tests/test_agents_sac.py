@@ -130,7 +130,9 @@ def test_host_training_is_reproducible_and_follows_the_schedule(pendulum):
         return sac.train_gymnasium(config, "Pendulum", contexts, jax.random.key(key), seed=1)
 
     first, again = run(0), run(0)
-    for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(again)):
+    leaves = [jax.tree_util.tree_leaves((r.params, r.metrics)) for r in (first, again)]
+    assert len(leaves[0]) == len(leaves[1]) > 10
+    for a, b in zip(*leaves, strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert first.metrics["step"].tolist() == [300, 400, 500, 600]
     alpha = first.metrics["alpha"]
