@@ -112,8 +112,9 @@ def test_paper_config():
 
 def test_host_training_is_reproducible_and_follows_the_schedule(pendulum):
     """The host path (one compiled call per step after the warm-up): two pendulum masses through
-    gymnasium's vector API. The same key and seed give the same parameters and curve; rows come every ``log_every`` steps after the warm-up, and the temperature moves
-    once actor updates run (every second critic update)."""
+    gymnasium's vector API. The same key and seed give the same parameters and curve; rows come
+    every ``log_every`` steps after the warm-up, and the temperature moves once actor updates run
+    (every second critic update)."""
     contexts = pendulum.context_space.stack([pendulum.context(m=0.5), pendulum.context(m=2.0)])
     config = sac.SACConfig(
         total_timesteps=600,

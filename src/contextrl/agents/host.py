@@ -251,7 +251,8 @@ class HostLearner(abc.ABC):
     Per vector step the loop calls ``act`` for the collector's current observation and context input,
     steps every copy with the returned environment actions, and hands the step to ``store``; after
     every ``steps_per_update`` steps it calls ``update``, and at the end of each metrics row
-    ``row_metrics``. During the warm-up ``warmup`` is True and ``update`` is not called.
+    ``row_metrics``. During the warm-up ``warmup`` is True and ``update`` is not called. A learner
+    may learn inside ``store`` instead (SAC: one compiled call per step) and leave ``update`` empty.
     """
 
     params: Any
@@ -280,15 +281,16 @@ def train_on_host(
     env_id: str,
     train_contexts: Any,
     key,
-    learner: Callable[[Any, HostCollector, Any], HostLearner],
+    make_learner: Callable[[Any, HostCollector, Any], HostLearner],
     schedule: HostSchedule,
     *,
     seed: int = 0,
     vectorization: str = "sync",
     **env_kwargs: Any,
 ) -> TrainResult:
-    """Train ``learner(config, collector, key)`` by ``schedule`` on ``config.num_envs`` copies of ``env_id`` (contexts
-    from ``train_contexts`` by ``config.context_selector``): the host training loop of every agent.
+    """Train ``make_learner(config, collector, key)`` by ``schedule`` on ``config.num_envs`` copies of
+    ``env_id`` (contexts from ``train_contexts`` by ``config.context_selector``): the host training
+    loop of every agent.
     Returns the ``TrainResult`` of the agent's JAX path: one metrics row per period (``step``,
     ``episode_return``, ``episode_length``, ``episodes_finished`` and the learner's columns) and the
     most recent ``config.episode_log_size`` episodes."""
@@ -305,7 +307,7 @@ def train_on_host(
         vectorization=vectorization,
         **env_kwargs,
     ) as collector:
-        learner = learner(config, collector, key)
+        learner = make_learner(config, collector, key)
 
         def vector_step(warmup: bool) -> None:
             obs, context = collector.obs, collector.context
