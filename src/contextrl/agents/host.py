@@ -252,7 +252,7 @@ class HostLearner(abc.ABC):
     steps every copy with the returned environment actions, and hands the step to ``store``; after
     every ``steps_per_update`` steps it calls ``update``, and at the end of each metrics row
     ``row_metrics``. During the warm-up ``warmup`` is True and ``update`` is not called. A learner
-    may learn inside ``store`` instead (SAC: one compiled call per step) and leave ``update`` empty.
+    may learn inside ``store`` instead (SAC) and leave ``update`` empty.
     """
 
     params: Any

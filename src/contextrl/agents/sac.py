@@ -468,12 +468,12 @@ def train_gymnasium(
 
 
 class _HostLearner(HostLearner):
-    """SAC's part of the host loop, one compiled call per vector step after the warm-up.
+    """SAC's part of the host loop: after the warm-up, two compiled calls per vector step.
 
-    Parameters, optimiser states, replay buffer and key stay on the device and are donated to each
-    call, which stores the step, samples a batch, updates the critics (and, on a round's last step,
-    the actor and temperature) and draws the next exploring action from the updated actor: the order
-    of :func:`make_train`, so ``update`` has nothing left to do.
+    Parameters, optimiser states, replay buffer and key stay on the device and are donated to the
+    calls: one stores the step in place, the other samples a batch, updates the critics (and, on a
+    round's last step, the actor and temperature) and draws the next exploring action from the
+    updated actor, the order of :func:`make_train`, so ``update`` has nothing left to do.
     """
 
     def __init__(self, config: SACConfig, collector, key):
@@ -493,13 +493,13 @@ class _HostLearner(HostLearner):
         def start(key, example):
             key, init_key = jax.random.split(key)
             params, target_critic, opt_states = init(init_key)
-            return {
+            state = {
                 "params": params,
                 "target_critic": target_critic,
                 "opt_states": opt_states,
-                "replay": Replay.create(capacity, example),
                 "key": key,
             }
+            return state, Replay.create(capacity, example)
 
         @functools.partial(jax.jit, donate_argnums=0)
         def first_action(state, obs, context_vector):
@@ -508,13 +508,12 @@ class _HostLearner(HostLearner):
             action = _sample_action(nets, actor, obs, context_vector, action_key)[0]
             return {**state, "key": key}, action
 
-        @functools.partial(jax.jit, donate_argnums=0)
-        def add(state, transition):
-            return {**state, "replay": state["replay"].add(transition)}
+        # Storing is its own call: sampling from the buffer a call has just written makes XLA copy
+        # whole buffers, while a separate in-place write costs nothing.
+        add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=0)
 
         @functools.partial(jax.jit, donate_argnums=0, static_argnums=3)
-        def learn_and_act(state, transition, next_inputs, with_actor):
-            replay = state["replay"].add(transition)
+        def learn_and_act(state, replay, next_inputs, with_actor):
             key, sample_key, critic_key, actor_key, action_key = jax.random.split(state["key"], 5)
             batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
             params, target_critic, opt_states, critic_loss = critic_update(
@@ -532,12 +531,11 @@ class _HostLearner(HostLearner):
                 "params": params,
                 "target_critic": target_critic,
                 "opt_states": opt_states,
-                "replay": replay,
                 "key": key,
             }
             return state, action, losses
 
-        self._state = start(key, example)
+        self._state, self._replay = start(key, example)
         self._first_action, self._add, self._learn_and_act = first_action, add, learn_and_act
         self._rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
         self._next_action = None
@@ -559,13 +557,12 @@ class _HostLearner(HostLearner):
         return self._nets.to_env(self._action)
 
     def store(self, obs, context, step, warmup):
-        transition = step.transition(obs, context, self._action)
+        self._replay = self._add(self._replay, step.transition(obs, context, self._action))
         if warmup:
-            self._state = self._add(self._state, transition)
             return
         self._round = (self._round + 1) % self._policy_frequency
         self._state, self._next_action, losses = self._learn_and_act(
-            self._state, transition, (step.obs, step.context), self._round == 0
+            self._state, self._replay, (step.obs, step.context), self._round == 0
         )
         self._losses.append(losses)
 
