@@ -16,7 +16,7 @@ import argparse
 
 import jax
 import jax.numpy as jnp
-from _scan import random_rollout, steps_per_second
+from _scan import observing, random_rollout, steps_per_second
 
 import contextrl as crl
 from contextrl.envs import brax as family
@@ -41,16 +41,7 @@ def per_copy_contexts(env, n: int):
 
 def ours(env, n: int):
     contexts = per_copy_contexts(env, n)
-
-    def reset(key, context):
-        state, ts = env.reset(key, context)
-        return state, ts.obs
-
-    def step(key, state, action, context):
-        state, ts = env.step(key, state, action, context)
-        return state, ts.obs
-
-    return random_rollout(reset, step, env.action_space.sample, contexts, STEPS)
+    return random_rollout(*observing(env), env.action_space.sample, contexts, STEPS)
 
 
 def brax_shared(env, n: int):

@@ -247,7 +247,7 @@ def run_command(args: argparse.Namespace) -> int:
 
                 print(describe_plan(spec, calibrate_time=not args.no_calibration))
                 return 0
-        connect(args.executor, args.address)
+        connect(args.executor, args.address, on_ray=spec.runs_on_ray)
         if not args.resume:
             run = _create_run(spec, args)
             if progress:

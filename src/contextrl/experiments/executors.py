@@ -99,12 +99,17 @@ def run_local(
     return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
 
 
-def connect(executor: str, address: str | None) -> None:
-    """Check the executor before a run directory exists: for ``ray``, join (or start) the cluster now,
-    so a wrong ``--address`` is a one-line error and leaves nothing half made."""
+def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
+    """Check the executor before a run directory exists: for ``ray`` (or a protocol that runs on Ray
+    itself, ``on_ray``), join (or start) the cluster now, so a wrong ``--address`` is a one-line
+    error and leaves nothing half made."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
-    if executor != "ray":
+    if executor != "ray" and not on_ray:
+        if address is not None:
+            raise SpecError(
+                f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
+            )
         return
     import ray
 
