@@ -17,6 +17,20 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 
+def observing(env):
+    """``(reset, step)`` of a JAX env that return ``(state, obs)``, as :func:`random_rollout` takes them."""
+
+    def reset(key, ctx):
+        state, ts = env.reset(key, ctx)
+        return state, ts.obs
+
+    def step(key, state, action, ctx):
+        state, ts = env.step(key, state, action, ctx)
+        return state, ts.obs
+
+    return reset, step
+
+
 def random_rollout(reset, step, sample_action, params, steps: int, devices: int = 1):
     """A compiled function key → checksum: reset every copy, then ``steps`` random steps.
 

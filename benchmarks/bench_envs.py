@@ -14,7 +14,7 @@ import subprocess
 import sys
 
 import jax
-from _scan import CORES, batched_rollout, random_rollout, steps_per_second
+from _scan import CORES, batched_rollout, observing, random_rollout, steps_per_second
 
 import contextrl as crl
 
@@ -27,16 +27,7 @@ KEY = jax.random.key(0)
 def fixed_contexts(env, n, spec):
     """Plain env.reset/env.step; each copy keeps its own context for the whole run."""
     contexts = crl.sample(env, spec, n, jax.random.key(0))
-
-    def reset(key, ctx):
-        state, ts = env.reset(key, ctx)
-        return state, ts.obs
-
-    def step(key, state, action, ctx):
-        state, ts = env.step(key, state, action, ctx)
-        return state, ts.obs
-
-    return reset, step, contexts
+    return (*observing(env), contexts)
 
 
 def contextual_rate(env, n, steps, contexts) -> float:

@@ -2,18 +2,21 @@
 
     python benchmarks/bench_platformer.py [--quick]
 
-Prints tile observations at 4,096 copies (one core, and split over every core), pixel observations at
-256 and 4,096 copies (frames/s), and the share of a step spent generating the level: the same loop with
-the level generator swapped for flat ground without enemies. CARL's Mario (Java over py4j, TOAD-GAN) is
-not run here (it needs Java, Xvfb and torch 2.4); its ~230 steps/s are the figure the CARL authors
-report, quoted for scale.
+Every figure steps the copies through the project's one stepping path, ``ContextualEnv.step_copies``
+(random actions, same-step auto-reset, each copy keeping its own level: a round robin over as many
+contexts as copies). It prints tile observations at 4,096 copies (also split over every core),
+pixel observations at 256 and 4,096 copies (frames/s), and what the level costs: the same loop with the
+level generator swapped for flat ground without enemies, and a reset of every copy against a step.
+CARL's Mario (Java over py4j, TOAD-GAN) is not run here (it needs Java, Xvfb and torch 2.4); its ~230
+steps/s are the figure the CARL authors report, quoted for scale.
 """
 
 import argparse
+import time
 
 import jax
 import jax.numpy as jnp
-from _scan import CORES, random_rollout, steps_per_second
+from _scan import CORES, batched_rollout, observing, random_rollout, steps_per_second
 
 import contextrl as crl
 from contextrl.envs.platformer import platformer
@@ -32,27 +35,51 @@ def levels(env, n):
     )
 
 
-def measure(env, n, steps, devices=1):
-    def reset(key, ctx):
-        state, ts = env.reset(key, ctx)
+def measure(env, n, steps):
+    """(compile s, steps/s) of ``step_copies`` over ``n`` copies, copy i on level i."""
+    contextual = crl.with_contexts(env, levels(env, n))
+
+    def reset_batch(key):
+        state, ts = contextual.reset_copies(key, n)
         return state, ts.obs
 
-    def step(key, state, action, ctx):
-        state, ts = env.step(key, state, action, ctx)
+    def step_batch(_, state, actions):
+        state, ts = contextual.step_copies(state, actions)
         return state, ts.obs
 
-    run = random_rollout(reset, step, env.action_space.sample, levels(env, n), steps, devices)
-    return steps_per_second(run, n, steps)
+    return steps_per_second(batched_rollout(reset_batch, step_batch, 10, steps), n, steps)
 
 
-def flat_tiles(context, reach, columns, rows):
-    """Flat ground everywhere: the level without its generator (for the generation share)."""
-    kind = jnp.where(rows < platformer.BASE_HEIGHT, platformer.GROUND, platformer.EMPTY)
-    return jnp.broadcast_to(kind, jnp.broadcast_shapes(jnp.shape(columns), jnp.shape(rows)))
+def measure_split(env, n, steps):
+    """Steps/s of ``jax.vmap(env.step)`` with the copies split over every core (one device each)."""
+    reset, step = observing(env)
+    run = random_rollout(reset, step, env.action_space.sample, levels(env, n), steps, CORES)
+    return steps_per_second(run, n, steps)[1]
+
+
+def reset_and_step_seconds(env, n, repeats=20):
+    """Seconds of one reset of ``n`` copies and of one step of them (``jax.vmap``, compiled alone)."""
+    contexts = levels(env, n)
+    keys = jax.random.split(jax.random.key(0), n)
+    reset = jax.jit(jax.vmap(env.reset))
+    step = jax.jit(jax.vmap(env.step))
+    state, _ = reset(keys, contexts)
+    actions = jax.random.randint(jax.random.key(1), (n,), 0, 10)
+
+    def best(call):
+        jax.block_until_ready(call())
+        fastest = float("inf")
+        for _ in range(repeats):
+            start = time.perf_counter()
+            jax.block_until_ready(call())
+            fastest = min(fastest, time.perf_counter() - start)
+        return fastest
+
+    return best(lambda: reset(keys, contexts)), best(lambda: step(keys, state, actions, contexts))
 
 
 def flat_segments(context, reach, segment):
-    """Segments without gaps, pipes, bricks or enemies."""
+    """Segments without gaps, pipes, bricks or enemies: the level without its generator."""
     zeros = jnp.zeros(jnp.shape(segment), jnp.int32)
     return {
         "gap": zeros,
@@ -76,37 +103,44 @@ def main() -> None:
     print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {steps} random steps per copy\n")
 
     tiles = crl.make("Platformer")
-    print("Tile observations, every copy on its own level")
+    print("Tile observations, every copy on its own level (ContextualEnv.step_copies)")
     print(f"{'copies':>8} {'devices':>8} {'compile s':>10} {'steps/s':>12} {'× CARL Mario':>14}")
-    rows = [(4096, 1)] + ([(4096, CORES)] if CORES > 1 else [])
-    for n, devices in rows:
-        compile_s, rate = measure(tiles, n, steps, devices)
-        ratio = rate / CARL_MARIO_STEPS_PER_SECOND
-        print(f"{n:>8} {devices:>8} {compile_s:>10.1f} {rate:>12.3g} {ratio:>14.0f}")
-    full = measure(tiles, 4096, steps)[1]
+    compile_s, full = measure(tiles, 4096, steps)
+    print(
+        f"{4096:>8} {1:>8} {compile_s:>10.1f} {full:>12.3g} {full / CARL_MARIO_STEPS_PER_SECOND:>14.0f}"
+    )
+    if CORES > 1:
+        split = measure_split(tiles, 4096, steps)
+        print(
+            f"{4096:>8} {CORES:>8} {'':>10} {split:>12.3g} {split / CARL_MARIO_STEPS_PER_SECOND:>14.0f}  (vmap(env.step))"
+        )
 
     pixels = crl.make("Platformer", obs="pixels")
     print("\nPixel observations (84×84 RGB drawn in JAX), every copy on its own level")
     print(f"{'copies':>8} {'compile s':>10} {'frames/s':>12} {'× CARL Mario':>14}")
     for n in (256, 4096):
-        compile_s, rate = measure(pixels, n, max(10, steps // 10))
-        ratio = rate / CARL_MARIO_STEPS_PER_SECOND
-        print(f"{n:>8} {compile_s:>10.1f} {rate:>12.3g} {ratio:>14.0f}")
+        compile_s, rate = measure(pixels, n, max(4, steps // 40))
+        print(
+            f"{n:>8} {compile_s:>10.1f} {rate:>12.3g} {rate / CARL_MARIO_STEPS_PER_SECOND:>14.0f}"
+        )
 
-    # The level is generated where it is looked at (collisions, the observation window), not stored:
-    # swap the generator for flat ground and the difference is what generation costs.
-    generated = platformer.tiles, platformer.segments
-    platformer.tiles = flat_tiles
+    # The level is no state: a step generates the segments around the agent from the context hash.
+    # Swapping the generator for flat ground shows what that costs.
+    generated = platformer.segments
     platformer.segments = flat_segments
     try:
         flat = measure(crl.make("Platformer"), 4096, steps)[1]
     finally:
-        platformer.tiles, platformer.segments = generated
-    share = 1 - full / flat
-    print("\nLevel generation (tile observations, 4,096 copies, one device)")
+        platformer.segments = generated
+    reset_s, step_s = reset_and_step_seconds(tiles, 4096)
+    print("\nThe level's cost (tile observations, 4,096 copies, one device)")
     print(f"generated levels {full:.3g} steps/s, flat ground {flat:.3g} steps/s")
     print(
-        f"generation's share of the step: {share:.0%} (a reset regenerates nothing: no level is stored)"
+        f"generation's share of a step: {1 - full / flat:.0%} (it runs in every step: no level is stored)"
+    )
+    print(
+        f"reset of every copy {reset_s * 1e3:.2f} ms, a step {step_s * 1e3:.2f} ms "
+        f"(a reset generates nothing: the first observation reads the level like a step)"
     )
 
 

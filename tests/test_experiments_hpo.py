@@ -1,12 +1,18 @@
-"""`contextrl run hpo`: PB2 on a local Ray tunes PPO on sampled contexts; the best configuration feeds
-another protocol through --agent-config."""
+"""`contextrl run hpo`: PB2 on a local Ray tunes PPO on sampled contexts, reproducibly from the seed;
+the best configuration feeds another protocol through --agent-config."""
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
 
 from contextrl.experiments import SpecError, parse_spec
 from contextrl.experiments.commands import main as commands_main
+
+BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
+
+
+pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
 
 
 def test_hpo_search_bounds_are_checked_before_anything_runs():
@@ -20,26 +26,51 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
         parse_spec({"protocol": "hpo", "population": 1})
 
 
-def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(tmp_path):
+@pytest.fixture(scope="module")
+def pb2_runs(tmp_path_factory):
+    """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. The runs
+    share one JAX compilation cache (when this test starts Ray, its workers read the variable), so
+    the second run does not compile again."""
     pytest.importorskip("ray")
-    pytest.importorskip("GPy")
-    out = tmp_path / "hpo"
-    argv = ["run", "hpo", "--env", "CartPole", "--agent", "ppo", "--vary", "length=uniform:0.3:0.7"]
-    argv += ["--agent-option", "num_steps=32", "--agent-option", "hidden_sizes=[8]"]
-    argv += ["--set", "population=2", "--set", "rounds=3", "--set", "steps_per_round=256"]
-    argv += ["--set", "num_train_contexts=4", "--set", "num_test_contexts=5", "--max-steps", "50"]
-    argv += ["--episodes", "2", "--out", str(out), "--quiet"]
-    assert commands_main(argv) == 0
-    schedule = pd.read_parquet(out / "curves" / "chunk-0000.parquet")
+    patch = pytest.MonkeyPatch()
+    patch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path_factory.mktemp("jax-cache")))
+    runs = []
+    for name in ("first", "second"):
+        out = tmp_path_factory.mktemp("hpo") / name
+        argv = ["run", "hpo", "--env", "CartPole", "--agent", "ppo", "--seed", "7"]
+        argv += ["--vary", "length=uniform:0.3:0.7", "--out", str(out), "--quiet"]
+        argv += ["--agent-option", "num_steps=32", "--agent-option", "hidden_sizes=[8]"]
+        argv += ["--set", "population=2", "--set", "rounds=3", "--set", "steps_per_round=256"]
+        argv += ["--set", "num_train_contexts=4", "--set", "num_test_contexts=5"]
+        argv += ["--max-steps", "50", "--episodes", "2"]
+        assert commands_main(argv) == 0
+        runs.append(out)
+    patch.undo()
+    return runs
+
+
+def schedule(out) -> pd.DataFrame:
+    return pd.read_parquet(out / "curves" / "chunk-0000.parquet")
+
+
+def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_path):
+    out = pb2_runs[0]
+    frame = schedule(out)
     # two members, three rounds of 256 steps each, every hyper-parameter within its bounds
-    assert sorted(schedule.groupby("trial")["step"].max()) == [768, 768]
-    assert schedule["hp.learning_rate"].between(1e-5, 1e-2).all()
-    assert schedule["hp.ent_coef"].between(0.0, 0.05).all()
+    assert frame.groupby("trial")["step"].apply(list).to_dict() == {
+        "member-0": [256, 512, 768],
+        "member-1": [256, 512, 768],
+    }
+    for name, (low, high) in BOUNDS.items():
+        assert frame[f"hp.{name}"].between(low, high).all()
     best = yaml.safe_load((out / "best.yaml").read_text())
     assert best["num_steps"] == 32 and 1e-5 <= best["learning_rate"] <= 1e-2
     results = pd.read_parquet(out / "results" / "chunk-0000.parquet")
     assert len(results) == 5 and results["ctx.length"].between(0.3, 0.7).all()
     assert results["hp.learning_rate"].iloc[0] == best["learning_rate"]
+    # the best configuration is one a member trained with in the last round
+    last = frame[frame["step"] == 768]
+    assert best["learning_rate"] in last["hp.learning_rate"].tolist()
     html = (out / "report.html").read_text()
     assert "Hyper-parameter optimisation (PB2)" in html and 'data-figure="hpo-schedules"' in html
     # the best configuration as the agent of another protocol
@@ -49,3 +80,32 @@ def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(tmp_path):
     assert commands_main(argv) == 0
     options = yaml.safe_load((other / "spec.yaml").read_text())["agent_options"]
     assert options == best
+
+
+def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):
+    first, second = pb2_runs
+    pd.testing.assert_frame_equal(schedule(first), schedule(second))
+    assert (first / "best.yaml").read_text() == (second / "best.yaml").read_text()
+    columns = ["context_index", "return"]
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(first / "results" / "chunk-0000.parquet")[columns],
+        pd.read_parquet(second / "results" / "chunk-0000.parquet")[columns],
+    )
+
+
+def test_pb2_changes_hyperparameters_between_rounds(pb2_runs):
+    """An exploit/explore step happened: a member's hyper-parameters differ between two rounds, and
+    each change took the parameters of the better member (its return before the step is lower)."""
+    frame = schedule(pb2_runs[0])
+    names = [f"hp.{name}" for name in BOUNDS]
+    changes = 0
+    for step_before, step_after in ((256, 512), (512, 768)):
+        before = frame[frame["step"] == step_before].set_index("trial")
+        after = frame[frame["step"] == step_after].set_index("trial")
+        for member in before.index:
+            if np.allclose(before.loc[member, names], after.loc[member, names]):
+                continue
+            changes += 1
+            others = before.drop(index=member)
+            assert before.loc[member, "episode_return"] <= others["episode_return"].max()
+    assert changes >= 1

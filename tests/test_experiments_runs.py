@@ -145,6 +145,20 @@ def test_interrupted_run_resumes_to_the_same_results(tmp_path):
     assert (part.path / "report.html").exists()
 
 
+def test_worker_processes_give_the_results_of_this_process(tmp_path):
+    """The processes executor spreads chunks over worker processes: same rows, none lost or doubled."""
+    here, _ = run_experiment(VISIBILITY, out=tmp_path / "here", progress=False, report=False)
+    spread, summary = run_experiment(
+        VISIBILITY, out=tmp_path / "spread", executor="processes", progress=False, report=False
+    )
+    assert summary.ran == [0, 1, 2, 3] and summary.failed == []
+    columns = ["trial", "context_index", "return"]
+    ordered = spread.results()[columns].sort_values(columns[:2], ignore_index=True)
+    pd.testing.assert_frame_equal(
+        ordered, here.results()[columns].sort_values(columns[:2], ignore_index=True)
+    )
+
+
 def test_failed_chunk_is_recorded_and_retried_on_resume(tmp_path):
     run, _ = run_experiment(VISIBILITY, out=tmp_path / "run", progress=False, max_chunks=0)
     plan = expand(run.spec())

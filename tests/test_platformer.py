@@ -295,3 +295,57 @@ def test_pixel_observations_and_full_frames_show_each_style():
         gym_env.step(RIGHT_RUN)
     assert not np.array_equal(frame, gym_env.render())  # the view follows the running agent
     gym_env.close()
+
+
+def play(env, action, options, steps=300):
+    """Holds ``action`` from a reset with ``options`` until the episode ends: the last step's info."""
+    env.reset(seed=0, options=options)
+    for _ in range(steps):
+        _, reward, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            return terminated, reward, info
+    raise AssertionError(f"the episode did not end in {steps} steps")
+
+
+def test_gymnasium_info_says_completed_died_and_distance():
+    import gymnasium
+
+    env = gymnasium.make("contextrl/Platformer-v0")
+    _, info = env.reset(seed=0)
+    assert (info["completed"], info["died"], info["distance"]) == (False, False, 0.0)
+
+    # Walking into the default level's first gap.
+    terminated, reward, info = play(env, RIGHT, {"context": {}})
+    assert terminated and info["died"] and not info["completed"]
+    assert reward < -pf.DEATH_PENALTY + 1 and 2.0 < info["distance"] < 6.0
+
+    # No gaps, an enemy in every underground segment: walking into the first one (this layout has no
+    # step or pipe before it that would stop the walk).
+    enemies = {
+        "level_index": "underground",
+        "noise_seed": 2,
+        "gap_frequency": 0.0,
+        "enemy_density": 2.0,
+    }
+    terminated, _, info = play(env, RIGHT, {"context": enemies})
+    level = level_map(crl.make("Platformer").context(**enemies))
+    assert not np.any(level[pf.BASE_HEIGHT - 1] == pf.EMPTY)  # nowhere to fall
+    assert terminated and info["died"] and not info["completed"] and info["distance"] < 20
+
+    # A short flat level without enemies: running and jumping reaches the flag.
+    flat = {"level_width": 16, "gap_frequency": 0.0, "enemy_density": 0.0}
+    terminated, reward, info = play(env, RIGHT_RUN_JUMP, {"context": flat})
+    assert terminated and info["completed"] and not info["died"]
+    assert info["progress"] == 1.0 and reward > pf.FLAG_BONUS
+    env.close()
+
+    # The vector face reports the same facts per copy, the ended episodes' also in final_info.
+    envs = gymnasium.make_vec("contextrl/Platformer-v0", num_envs=2)
+    envs.reset(seed=0)
+    for _ in range(200):
+        _, _, terminated, _, info = envs.step(np.full(2, RIGHT))
+        if terminated.any():
+            break
+    assert terminated.all() and info["died"].all() and not info["completed"].any()
+    assert np.all(info["final_info"]["died"]) and np.all(info["distance"] > 2.0)
+    envs.close()

@@ -129,10 +129,15 @@ def test_debug_shows_the_traceback(tmp_path):
     assert "SpecError: --config bad.yaml: YAML syntax error" in result.stderr
 
 
-def test_ray_address_without_a_cluster_is_one_line_and_makes_nothing(tmp_path):
-    result = contextrl(
-        "run", "visibility", *TINY_RANDOM, "--executor", "ray", "--address", "auto", cwd=tmp_path
-    )
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["visibility", *TINY_RANDOM, "--executor", "ray"],
+        ["hpo", "--set", "population=2"],  # PB2 runs on Ray Tune whatever the executor
+    ],
+)
+def test_ray_address_without_a_cluster_is_one_line_and_makes_nothing(argv, tmp_path):
+    result = contextrl("run", *argv, "--address", "auto", cwd=tmp_path)
     one_line_error(result, "--address auto: Could not find any running Ray instance", "ray start")
     assert not (tmp_path / "runs").exists()
 

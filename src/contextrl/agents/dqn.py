@@ -30,6 +30,7 @@ from contextrl.agents.common import (
     contextual_env_factory,
     num_context_ids,
 )
+from contextrl.agents.host import HostLearner, HostSchedule, HostStep, train_on_host
 from contextrl.agents.networks import (
     ConditionedMLP,
     ConfigError,
@@ -452,26 +453,24 @@ def train_gymnasium(
     vectorization: str = "sync",
     **env_kwargs: Any,
 ) -> TrainResult:
-    """DQN/C51 on the host collector (:class:`contextrl.agents.host.HostCollector`): for host
+    """DQN/C51 on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
     environments (RNA design, Box2D…) or any registered id, with the schedule of :func:`make_train`
     (warm-up, then ``train_frequency`` vector steps per gradient step). Returns the same
     ``TrainResult``."""
-    from contextrl.agents.host import HostCollector
-
-    config.validate()
-    if config.context_selector == "static" or not isinstance(env_id, str):
-        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
-    with HostCollector(
+    return train_on_host(
+        "DQN",
+        config,
         env_id,
-        config.num_envs,
         train_contexts,
-        config.obs_context,
-        selector=config.context_selector,
+        key,
+        _HostLearner,
+        HostSchedule(
+            config.warmup_steps, config.num_rows, config.updates_per_row, config.train_frequency
+        ),
         seed=seed,
         vectorization=vectorization,
         **env_kwargs,
-    ) as collector:
-        return _train_host(config, collector, key)
+    )
 
 
 def make_host_policy(config: DQNConfig, action_space, obs_space, context) -> Callable:
@@ -486,75 +485,58 @@ def make_host_policy(config: DQNConfig, action_space, obs_space, context) -> Cal
     return act
 
 
-def _train_host(config: DQNConfig, collector, key) -> TrainResult:
-    nets = _build_networks(
-        config,
-        "the environment",
-        collector.single_action_space,
-        collector.single_observation_space,
-        collector.context_input,
-    )
-    optimizer, act, learn, epsilon_at = _learner(config, nets)
-    num_envs = config.num_envs
-    key, init_key = jax.random.split(key)
-    params = nets.q.init(init_key)
-    target_params, opt_state = params, optimizer.init(params)
-    replay = Replay.create(
-        max(config.buffer_size // num_envs, config.n_step + 1),
-        {
-            "obs": collector.obs,
-            "context": collector.context,
-            "action": np.zeros((num_envs,), np.int32),
-            "reward": np.zeros((num_envs,), np.float32),
-            "terminated": np.zeros((num_envs,), bool),
-            "done": np.zeros((num_envs,), bool),
-            "next_obs": collector.obs,
-        },
-    )
-    replay = jax.tree_util.tree_map(jnp.copy, replay)  # own buffers: the loop donates them
-    add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
-    learn = jax.jit(learn)
-    explore = jax.jit(act)
+class _HostLearner(HostLearner):
+    """DQN/C51's part of the host loop: ε-greedy (or Boltzmann) acting, replay, gradient steps."""
 
-    def collect(action: np.ndarray, replay):
-        obs, context_vector = collector.obs, collector.context
-        step = collector.step(action)
-        transition = {
-            "obs": obs,
-            "context": context_vector,
-            "action": action.astype(np.int32),
-            "reward": step.reward,
-            "terminated": step.terminated,
-            "done": step.done,
-            "next_obs": step.final_obs,
-        }
-        return add(replay, transition)
+    def __init__(self, config: DQNConfig, collector, key):
+        nets = _build_networks(
+            config,
+            "the environment",
+            *collector.agent_inputs,
+        )
+        optimizer, act, learn, self._epsilon_at = _learner(config, nets)
+        self._num_actions, self._num_envs = nets.num_actions, config.num_envs
+        key, init_key = jax.random.split(key)
+        self.params = nets.q.init(init_key)
+        self._target_params, self._opt_state = self.params, optimizer.init(self.params)
+        example = HostStep.example(collector, np.zeros((self._num_envs,), np.int32))
+        capacity = max(config.buffer_size // self._num_envs, config.n_step + 1)
+        # Own buffers: every step donates them.
+        self._replay = jax.tree_util.tree_map(jnp.copy, Replay.create(capacity, example))
+        self._add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
+        self._learn, self._explore = jax.jit(learn), jax.jit(act)
+        self._rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
+        self._key, self._update_index, self._losses = key, 0, []
 
-    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
-    for _ in range(config.warmup_steps):
-        replay = collect(rng.integers(0, nets.num_actions, num_envs), replay)
-    collector.close_period()  # warm-up episodes stay in the episode list, not the curve
-    rows, update_index = [], 0
-    for _ in range(config.num_rows):
-        losses = []
-        for _ in range(config.updates_per_row):
-            epsilon = epsilon_at(update_index)
-            for _ in range(config.train_frequency):
-                key, action_key = jax.random.split(key)
-                action = explore(params, collector.obs, collector.context, action_key, epsilon)
-                replay = collect(np.asarray(action), replay)
-            key, sample_key = jax.random.split(key)
-            params, target_params, opt_state, loss = learn(
-                params, target_params, opt_state, replay, sample_key, update_index
-            )
-            losses.append(loss)
-            update_index += 1
-        row = collector.close_period()
-        row["loss"] = float(np.mean(losses))
-        rows.append(row)
-    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
-    metrics["episodes"] = collector.episodes(config.episode_log_size)
-    return TrainResult(params, metrics)
+    def act(self, obs, context, warmup):
+        if warmup:
+            self._action = self._rng.integers(0, self._num_actions, self._num_envs)
+        else:
+            self._key, action_key = jax.random.split(self._key)
+            epsilon = self._epsilon_at(self._update_index)
+            self._action = np.asarray(self._explore(self.params, obs, context, action_key, epsilon))
+        return self._action
+
+    def store(self, obs, context, step, warmup):
+        transition = step.transition(obs, context, self._action.astype(np.int32))
+        self._replay = self._add(self._replay, transition)
+
+    def update(self):
+        self._key, sample_key = jax.random.split(self._key)
+        self.params, self._target_params, self._opt_state, loss = self._learn(
+            self.params,
+            self._target_params,
+            self._opt_state,
+            self._replay,
+            sample_key,
+            self._update_index,
+        )
+        self._losses.append(loss)
+        self._update_index += 1
+
+    def row_metrics(self):
+        losses, self._losses = self._losses, []
+        return {"loss": float(np.mean(losses))}
 
 
 def make_policy(

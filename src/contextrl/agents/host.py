@@ -7,20 +7,24 @@ public vector API, for environments that are not JAX functions (dm_control, Box2
 The collector owns what every agent's host training needs and nothing algorithm-specific: the vector
 env (``gymnasium.make_vec("contextrl/<Id>-v0", num_envs=N, contexts=...)``, same-step auto-reset), the
 agent's context input read from ``info["context"]`` and normalised by the feature bounds as on the JAX
-path, and the episode bookkeeping behind training curves. Agents add only acting and learning.
+path, and the episode bookkeeping behind training curves. :func:`train_on_host` is the one training
+loop over it (warm-up, rows of updates, metrics, progress); an agent adds only a :class:`HostLearner`
+(acting, storing and learning).
 """
 
 from __future__ import annotations
 
+import abc
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium
 import jax
 import numpy as np
 
-from contextrl.agents.networks import ContextInput, context_input
+from contextrl.agents.common import Progress, TrainResult
+from contextrl.agents.networks import ConfigError, ContextInput, context_input
 from contextrl.context.distributions import DISTRIBUTIONS
 from contextrl.gymnasium.registration import gym_id
 
@@ -40,6 +44,30 @@ class HostStep:
     @property
     def done(self) -> np.ndarray:
         return self.terminated | self.truncated
+
+    @staticmethod
+    def example(collector: HostCollector, action: np.ndarray) -> dict:
+        """A replay example of one vector step (``action`` for every copy), to size buffers."""
+        return HostStep(
+            np.zeros(collector.num_envs, np.float32),
+            np.zeros(collector.num_envs, bool),
+            np.zeros(collector.num_envs, bool),
+            collector.obs,
+            collector.obs,
+            collector.context,
+        ).transition(collector.obs, collector.context, action)
+
+    def transition(self, obs: np.ndarray, context: np.ndarray, action: np.ndarray) -> dict:
+        """The replay transition of this step taken with ``action`` from ``obs``/``context``."""
+        return {
+            "obs": obs,
+            "context": context,
+            "action": action,
+            "reward": self.reward,
+            "terminated": self.terminated,
+            "done": self.done,
+            "next_obs": self.final_obs,
+        }
 
 
 class HostCollector:
@@ -73,6 +101,7 @@ class HostCollector:
             **env_kwargs,
         )
         self.num_envs = num_envs
+        self.env_name = env_id
         self.space = (
             getattr(self.envs, "context_space", None) or self.envs.get_attr("context_space")[0]
         )
@@ -96,6 +125,11 @@ class HostCollector:
     @property
     def single_observation_space(self):
         return self.envs.single_observation_space
+
+    @property
+    def agent_inputs(self) -> tuple[Any, Any, ContextInput]:
+        """(action space, observation space, context input) of one copy: what agents build from."""
+        return self.single_action_space, self.single_observation_space, self.context_input
 
     def _context_input(self, info) -> np.ndarray:
         columns = []
@@ -193,3 +227,108 @@ class HostCollector:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@dataclasses.dataclass(frozen=True)
+class HostSchedule:
+    """How the host loop interleaves stepping and learning: ``warmup_steps`` vector steps of the
+    learner's warm-up actions, then ``num_rows`` metrics rows of ``updates_per_row`` updates, each after
+    ``steps_per_update`` vector steps."""
+
+    warmup_steps: int
+    num_rows: int
+    updates_per_row: int
+    steps_per_update: int
+
+    @property
+    def total_steps(self) -> int:
+        return self.warmup_steps + self.num_rows * self.updates_per_row * self.steps_per_update
+
+
+class HostLearner(abc.ABC):
+    """An agent's part of host training; :func:`train_on_host` steps the environment around it.
+
+    Per vector step the loop calls ``act`` for the collector's current observation and context input,
+    steps every copy with the returned environment actions, and hands the step to ``store``; after
+    every ``steps_per_update`` steps it calls ``update``, and at the end of each metrics row
+    ``row_metrics``. During the warm-up ``warmup`` is True and ``update`` is not called. A learner
+    may learn inside ``store`` instead (SAC) and leave ``update`` empty.
+    """
+
+    params: Any
+    """The parameters the result returns."""
+
+    @abc.abstractmethod
+    def act(self, obs: np.ndarray, context: np.ndarray, warmup: bool) -> np.ndarray:
+        """Environment actions for every copy (the learner remembers what it needs to store)."""
+
+    @abc.abstractmethod
+    def store(self, obs: np.ndarray, context: np.ndarray, step: HostStep, warmup: bool) -> None:
+        """Take in the vector step that followed the last ``act`` from ``obs``/``context``."""
+
+    @abc.abstractmethod
+    def update(self) -> None:
+        """Learn from what was stored since the last update."""
+
+    @abc.abstractmethod
+    def row_metrics(self) -> dict[str, float]:
+        """The algorithm's columns of the metrics row that ends now (losses…)."""
+
+
+def train_on_host(
+    name: str,
+    config: Any,
+    env_id: str,
+    train_contexts: Any,
+    key,
+    make_learner: Callable[[Any, HostCollector, Any], HostLearner],
+    schedule: HostSchedule,
+    *,
+    seed: int = 0,
+    vectorization: str = "sync",
+    **env_kwargs: Any,
+) -> TrainResult:
+    """Train ``make_learner(config, collector, key)`` by ``schedule`` on ``config.num_envs`` copies of
+    ``env_id`` (contexts from ``train_contexts`` by ``config.context_selector``): the host training
+    loop of every agent.
+    Returns the ``TrainResult`` of the agent's JAX path: one metrics row per period (``step``,
+    ``episode_return``, ``episode_length``, ``episodes_finished`` and the learner's columns) and the
+    most recent ``config.episode_log_size`` episodes."""
+    config.validate()
+    if config.context_selector == "static" or not isinstance(env_id, str):
+        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
+    with HostCollector(
+        env_id,
+        config.num_envs,
+        train_contexts,
+        config.obs_context,
+        selector=config.context_selector,
+        seed=seed,
+        vectorization=vectorization,
+        **env_kwargs,
+    ) as collector:
+        learner = make_learner(config, collector, key)
+
+        def vector_step(warmup: bool) -> None:
+            obs, context = collector.obs, collector.context
+            step = collector.step(learner.act(obs, context, warmup))
+            learner.store(obs, context, step, warmup)
+
+        for _ in range(schedule.warmup_steps):
+            vector_step(warmup=True)
+        collector.close_period()  # warm-up episodes stay in the episode list, not the curve
+        progress = Progress(
+            f"{name} host", schedule.total_steps * collector.num_envs, config.progress_every
+        )
+        rows = []
+        for row_index in range(schedule.num_rows):
+            for _ in range(schedule.updates_per_row):
+                for _ in range(schedule.steps_per_update):
+                    vector_step(warmup=False)
+                learner.update()
+            rows.append({**collector.close_period(), **learner.row_metrics()})
+            if config.progress_every:
+                progress(row_index, rows[-1]["step"], rows[-1]["episode_return"])
+        metrics = {column: np.asarray([row[column] for row in rows]) for column in rows[0]}
+        metrics["episodes"] = collector.episodes(config.episode_log_size)
+        return TrainResult(learner.params, metrics)

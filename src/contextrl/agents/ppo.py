@@ -33,6 +33,7 @@ from contextrl.agents.common import (
     contextual_env_factory,
     num_context_ids,
 )
+from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
 from contextrl.agents.networks import (
     ConditionedMLP,
     ConfigError,
@@ -384,29 +385,25 @@ def train_gymnasium(
     vectorization: str = "sync",
     **env_kwargs: Any,
 ) -> TrainResult:
-    """PPO on the host collector (:class:`contextrl.agents.host.HostCollector`): for host environments
+    """PPO on the host collector (:func:`contextrl.agents.host.train_on_host`): for host environments
     (dm_control…) or any registered id.
 
     ``num_envs`` copies take contexts from ``train_contexts`` by ``config.context_selector``; acting
     and every update are compiled, the environment steps on the host. Returns the same
     ``TrainResult`` as :func:`make_train`; slower than the JAX path.
     """
-    from contextrl.agents.host import HostCollector
-
-    config.validate()
-    if config.context_selector == "static" or not isinstance(env_id, str):
-        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
-    with HostCollector(
+    return train_on_host(
+        "PPO",
+        config,
         env_id,
-        config.num_envs,
         train_contexts,
-        config.obs_context,
-        selector=config.context_selector,
+        key,
+        _HostLearner,
+        HostSchedule(0, config.num_updates, 1, config.num_steps),
         seed=seed,
         vectorization=vectorization,
         **env_kwargs,
-    ) as collector:
-        return _train_host(config, collector, key)
+    )
 
 
 def _host_networks(config: PPOConfig, action_space, obs_space, context) -> _Networks:
@@ -441,60 +438,61 @@ def make_host_policy(config: PPOConfig, action_space, obs_space, context) -> Cal
     return act
 
 
-def _train_host(config: PPOConfig, collector, key) -> TrainResult:
-    nets = _host_networks(
-        config,
-        collector.single_action_space,
-        collector.single_observation_space,
-        collector.context_input,
-    )
-    optimizer, value, learn = _learner(config, nets)
+class _HostLearner(HostLearner):
+    """PPO's part of the host loop: sampling with values, the rollout, the clipped update."""
 
-    @jax.jit
-    def act(params, obs, context_vector, key):
-        action, log_prob = _sample(nets, params, obs, context_vector, key)
-        return action, _env_action(nets, action), log_prob, value(params, obs, context_vector)
-
-    value_of = jax.jit(value)
-    learn = jax.jit(learn)
-    key, init_key = jax.random.split(key)
-    params = _init_params(nets, config, init_key)
-    opt_state = optimizer.init(params)
-    rows = []
-    total = config.num_updates * config.num_envs * config.num_steps
-    for _ in range(config.num_updates):
-        rollout = []
-        for _ in range(config.num_steps):
-            key, action_key = jax.random.split(key)
-            obs, context_vector = collector.obs, collector.context
-            action, env_action, log_prob, state_value = act(params, obs, context_vector, action_key)
-            step = collector.step(np.asarray(env_action))
-            # A time-limit cut is not a failure: bootstrap from the final observation's value.
-            cut = step.truncated & ~step.terminated
-            bootstrap = np.zeros(collector.num_envs, np.float32)
-            if cut.any():
-                bootstrap = np.asarray(value_of(params, step.final_obs, context_vector)) * cut
-            reward = step.reward + config.gamma * bootstrap
-            rollout.append((obs, context_vector, action, log_prob, state_value, reward, step.done))
-        stacked = tuple(np.stack(column) for column in zip(*rollout, strict=True))
-        last_value = value_of(params, collector.obs, collector.context)
-        params, opt_state, key, losses = learn(params, opt_state, stacked, last_value, key)
-        row = collector.close_period()
-        row.update(
-            actor_loss=float(losses[0].mean()),
-            value_loss=float(losses[1].mean()),
-            entropy=float(losses[2].mean()),
+    def __init__(self, config: PPOConfig, collector, key):
+        nets = _host_networks(
+            config,
+            *collector.agent_inputs,
         )
-        rows.append(row)
-        if config.progress_every and len(rows) % config.progress_every == 0:
-            print(
-                f"[PPO host] step {row['step']:>10,}/{total:,}  "
-                f"recent return {row['episode_return']:9.2f}",
-                flush=True,
-            )
-    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
-    metrics["episodes"] = collector.episodes(config.episode_log_size)
-    return TrainResult(params, metrics)
+        optimizer, value, learn = _learner(config, nets)
+
+        @jax.jit
+        def act(params, obs, context_vector, key):
+            action, log_prob = _sample(nets, params, obs, context_vector, key)
+            return action, _env_action(nets, action), log_prob, value(params, obs, context_vector)
+
+        self._act, self._value, self._learn = act, jax.jit(value), jax.jit(learn)
+        self._gamma = config.gamma
+        self._key, init_key = jax.random.split(key)
+        self.params = _init_params(nets, config, init_key)
+        self._opt_state = optimizer.init(self.params)
+        self._rollout: list = []
+
+    def act(self, obs, context, warmup):
+        self._key, action_key = jax.random.split(self._key)
+        self._action, env_action, self._log_prob, self._state_value = self._act(
+            self.params, obs, context, action_key
+        )
+        return np.asarray(env_action)
+
+    def store(self, obs, context, step, warmup):
+        # A time-limit cut is not a failure: bootstrap from the final observation's value.
+        cut = step.truncated & ~step.terminated
+        bootstrap = np.zeros(cut.shape, np.float32)
+        if cut.any():
+            bootstrap = np.asarray(self._value(self.params, step.final_obs, context)) * cut
+        reward = step.reward + self._gamma * bootstrap
+        self._rollout.append(
+            (obs, context, self._action, self._log_prob, self._state_value, reward, step.done)
+        )
+        self._next = step.obs, step.context
+
+    def update(self):
+        stacked = tuple(np.stack(column) for column in zip(*self._rollout, strict=True))
+        self._rollout = []
+        last_value = self._value(self.params, *self._next)
+        self.params, self._opt_state, self._key, self._losses = self._learn(
+            self.params, self._opt_state, stacked, last_value, self._key
+        )
+
+    def row_metrics(self):
+        return {
+            "actor_loss": float(self._losses[0].mean()),
+            "value_loss": float(self._losses[1].mean()),
+            "entropy": float(self._losses[2].mean()),
+        }
 
 
 def make_policy(

@@ -12,6 +12,8 @@ that the user's options override. An agent without ``make_train`` is not trained
 For host environments (dm_control, Box2D…) an agent adds ``train_host(config, env_id, train_contexts,
 key, seed=..., **env_kwargs)`` on the shared host collector and ``make_host_policy(config,
 action_space, observation_space, context_input) -> act(params, obs, context_input, key)``.
+``init_params(config, env, train_contexts, key)`` (optional) gives fresh parameters, so population-based
+tuning (the hpo protocol) compiles one training function that always continues given parameters.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ class Agent:
     doc: str = ""
     train_host: Callable | None = None
     make_host_policy: Callable | None = None
+    init_params: Callable | None = None
 
     @property
     def trained(self) -> bool:
@@ -165,6 +168,7 @@ register_agent(
         doc="PPO (clipped)",
         train_host=ppo.train_gymnasium,
         make_host_policy=ppo.make_host_policy,
+        init_params=ppo.init_params,
     )
 )
 register_agent(
@@ -177,6 +181,7 @@ register_agent(
         doc="DQN",
         train_host=dqn.train_gymnasium,
         make_host_policy=dqn.make_host_policy,
+        init_params=dqn.init_params,
     )
 )
 register_agent(
@@ -190,6 +195,7 @@ register_agent(
         doc="C51 (distributional DQN; the paper's settings where it has them)",
         train_host=dqn.train_gymnasium,
         make_host_policy=dqn.make_host_policy,
+        init_params=dqn.init_params,
     )
 )
 register_agent(
@@ -203,6 +209,7 @@ register_agent(
         doc="SAC (the paper's settings where it has them)",
         train_host=sac.train_gymnasium,
         make_host_policy=sac.make_host_policy,
+        init_params=sac.init_params,
     )
 )
 register_agent(

@@ -32,6 +32,7 @@ from contextrl.agents.common import (
     contextual_env_factory,
     num_context_ids,
 )
+from contextrl.agents.host import HostLearner, HostSchedule, HostStep, train_on_host
 from contextrl.agents.networks import (
     ConditionedMLP,
     ConfigError,
@@ -446,115 +447,135 @@ def train_gymnasium(
     vectorization: str = "sync",
     **env_kwargs: Any,
 ) -> TrainResult:
-    """SAC on the host collector (:class:`contextrl.agents.host.HostCollector`): for host
+    """SAC on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
     environments (dm_control…) or any registered id, with the same schedule as :func:`make_train`
     (warm-up, then ``policy_frequency`` rounds of one vector step and one critic update per actor
     update). Returns the same ``TrainResult``."""
-    from contextrl.agents.host import HostCollector
-
-    config.validate()
-    if config.context_selector == "static" or not isinstance(env_id, str):
-        raise ConfigError("train_gymnasium takes a registered env id and a non-static selector")
-    with HostCollector(
+    return train_on_host(
+        "SAC",
+        config,
         env_id,
-        config.num_envs,
         train_contexts,
-        config.obs_context,
-        selector=config.context_selector,
+        key,
+        _HostLearner,
+        HostSchedule(
+            config.warmup_steps, config.num_rows, config.updates_per_row, config.policy_frequency
+        ),
         seed=seed,
         vectorization=vectorization,
         **env_kwargs,
-    ) as collector:
-        return _train_host(config, env_id, collector, key)
-
-
-def _train_host(config: SACConfig, name: str, collector, key) -> TrainResult:
-    nets = _build_networks(
-        config,
-        name,
-        collector.single_action_space,
-        collector.single_observation_space,
-        collector.context_input,
     )
-    init, critic_update, actor_update = _learner(config, nets)
-    num_envs = config.num_envs
-    key, init_key = jax.random.split(key)
-    params, target_critic, opt_states = init(init_key)
-    replay = Replay.create(
-        max(config.buffer_size // num_envs, config.n_step + 1),
-        {
-            "obs": collector.obs,
-            "context": collector.context,
-            "action": np.zeros((num_envs, nets.action_size), np.float32),
-            "reward": np.zeros((num_envs,), np.float32),
-            "terminated": np.zeros((num_envs,), bool),
-            "done": np.zeros((num_envs,), bool),
-            "next_obs": collector.obs,
-        },
-    )
-    replay = jax.tree_util.tree_map(jnp.copy, replay)  # own buffers: the loop donates them
 
-    @jax.jit
-    def explore(actor_params, obs, context_vector, key):
-        return _sample_action(nets, actor_params, obs, context_vector, key)[0]
 
-    @functools.partial(jax.jit, donate_argnums=(3,))
-    def critic_round(params, target_critic, opt_states, replay, transition, key):
-        replay = replay.add(transition)
-        sample_key, target_key = jax.random.split(key)
-        batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
-        params, target_critic, opt_states, loss = critic_update(
-            params, target_critic, opt_states, batch, target_key
+class _HostLearner(HostLearner):
+    """SAC's part of the host loop: after the warm-up, two compiled calls per vector step.
+
+    Parameters, optimiser states, replay buffer and key stay on the device and are donated to the
+    calls: one stores the step in place, the other samples a batch, updates the critics (and, on a
+    round's last step, the actor and temperature) and draws the next exploring action from the
+    updated actor, the order of :func:`make_train`, so ``update`` has nothing left to do.
+    """
+
+    def __init__(self, config: SACConfig, collector, key):
+        nets = _build_networks(
+            config,
+            collector.env_name,
+            *collector.agent_inputs,
         )
-        return params, target_critic, opt_states, replay, loss, batch
+        init, critic_update, actor_update = _learner(config, nets)
+        num_envs = config.num_envs
+        self._nets, self._num_envs = nets, num_envs
+        self._policy_frequency, self._round = config.policy_frequency, 0
+        example = HostStep.example(collector, np.zeros((num_envs, nets.action_size), np.float32))
+        capacity = max(config.buffer_size // num_envs, config.n_step + 1)
 
-    add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
-    actor_step = jax.jit(actor_update)
+        @jax.jit
+        def start(key, example):
+            key, init_key = jax.random.split(key)
+            params, target_critic, opt_states = init(init_key)
+            state = {
+                "params": params,
+                "target_critic": target_critic,
+                "opt_states": opt_states,
+                "key": key,
+            }
+            return state, Replay.create(capacity, example)
 
-    def collect(action: np.ndarray) -> dict:
-        obs, context_vector = collector.obs, collector.context
-        step = collector.step(nets.to_env(action))
+        @functools.partial(jax.jit, donate_argnums=0)
+        def first_action(state, obs, context_vector):
+            key, action_key = jax.random.split(state["key"])
+            actor = state["params"]["actor"]
+            action = _sample_action(nets, actor, obs, context_vector, action_key)[0]
+            return {**state, "key": key}, action
+
+        # Storing is its own call: sampling from the buffer a call has just written makes XLA copy
+        # whole buffers, while a separate in-place write costs nothing.
+        add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=0)
+
+        @functools.partial(jax.jit, donate_argnums=0, static_argnums=3)
+        def learn_and_act(state, replay, next_inputs, with_actor):
+            key, sample_key, critic_key, actor_key, action_key = jax.random.split(state["key"], 5)
+            batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
+            params, target_critic, opt_states, critic_loss = critic_update(
+                state["params"], state["target_critic"], state["opt_states"], batch, critic_key
+            )
+            losses = {"critic_loss": critic_loss}
+            if with_actor:
+                params, opt_states, actor_loss, alpha = actor_update(
+                    params, opt_states, batch, actor_key
+                )
+                losses.update(actor_loss=actor_loss, alpha=alpha)
+            obs, context_vector = next_inputs
+            action = _sample_action(nets, params["actor"], obs, context_vector, action_key)[0]
+            state = {
+                "params": params,
+                "target_critic": target_critic,
+                "opt_states": opt_states,
+                "key": key,
+            }
+            return state, action, losses
+
+        self._state, self._replay = start(key, example)
+        self._first_action, self._add, self._learn_and_act = first_action, add, learn_and_act
+        self._rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
+        self._next_action = None
+        self._losses: list[dict] = []
+
+    @property
+    def params(self):
+        return self._state["params"]
+
+    def act(self, obs, context, warmup):
+        if warmup:
+            shape = (self._num_envs, self._nets.action_size)
+            self._action = self._rng.uniform(-1.0, 1.0, shape).astype(np.float32)
+        elif self._next_action is None:  # the first step after the warm-up
+            self._state, action = self._first_action(self._state, obs, context)
+            self._action = np.asarray(action)
+        else:
+            self._action = np.asarray(self._next_action)
+        return self._nets.to_env(self._action)
+
+    def store(self, obs, context, step, warmup):
+        self._replay = self._add(self._replay, step.transition(obs, context, self._action))
+        if warmup:
+            return
+        self._round = (self._round + 1) % self._policy_frequency
+        self._state, self._next_action, losses = self._learn_and_act(
+            self._state, self._replay, (step.obs, step.context), self._round == 0
+        )
+        self._losses.append(losses)
+
+    def update(self):
+        """Done inside the round's last ``store``."""
+
+    def row_metrics(self):
+        losses, self._losses = jax.device_get(self._losses), []
         return {
-            "obs": obs,
-            "context": context_vector,
-            "action": action,
-            "reward": step.reward,
-            "terminated": step.terminated,
-            "done": step.done,
-            "next_obs": step.final_obs,
+            "critic_loss": float(np.mean([x["critic_loss"] for x in losses])),
+            "actor_loss": float(np.mean([x["actor_loss"] for x in losses if "actor_loss" in x])),
+            "alpha": float([x["alpha"] for x in losses if "alpha" in x][-1]),
         }
-
-    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
-    for _ in range(config.warmup_steps):
-        uniform = rng.uniform(-1.0, 1.0, (num_envs, nets.action_size)).astype(np.float32)
-        replay = add(replay, collect(uniform))
-    collector.close_period()  # warm-up episodes stay in the episode list, not the curve
-    rows = []
-    for _ in range(config.num_rows):
-        critic_losses, actor_losses = [], []
-        for _ in range(config.updates_per_row):
-            for _ in range(config.policy_frequency):
-                key, action_key, round_key = jax.random.split(key, 3)
-                action = np.asarray(
-                    explore(params["actor"], collector.obs, collector.context, action_key)
-                )
-                params, target_critic, opt_states, replay, loss, batch = critic_round(
-                    params, target_critic, opt_states, replay, collect(action), round_key
-                )
-                critic_losses.append(loss)
-            key, actor_key = jax.random.split(key)
-            params, opt_states, loss, alpha = actor_step(params, opt_states, batch, actor_key)
-            actor_losses.append(loss)
-        row = collector.close_period()
-        row.update(
-            critic_loss=float(np.mean(critic_losses)),
-            actor_loss=float(np.mean(actor_losses)),
-            alpha=float(alpha),
-        )
-        rows.append(row)
-    metrics = {name: np.asarray([row[name] for row in rows]) for name in rows[0]}
-    metrics["episodes"] = collector.episodes(config.episode_log_size)
-    return TrainResult(params, metrics)
 
 
 def make_host_policy(config: SACConfig, action_space, obs_space, context) -> Callable:

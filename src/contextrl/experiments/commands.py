@@ -247,7 +247,7 @@ def run_command(args: argparse.Namespace) -> int:
 
                 print(describe_plan(spec, calibrate_time=not args.no_calibration))
                 return 0
-        connect(args.executor, args.address)
+        connect(args.executor, args.address, on_ray=spec.runs_on_ray)
         if not args.resume:
             run = _create_run(spec, args)
             if progress:
@@ -334,7 +334,11 @@ def add_run(subparsers) -> None:
     parser.add_argument("--out", help="run directory (default: ROOT/<name>-<time>)")
     parser.add_argument("--root", default="runs", help="where new run directories go")
     parser.add_argument("--resume", metavar="DIR", help="finish an interrupted run")
-    parser.add_argument("--executor", default="local", help="local or ray")
+    parser.add_argument(
+        "--executor",
+        default="local",
+        help="local (this process), processes (one worker per CPU core) or ray",
+    )
     parser.add_argument(
         "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
     )

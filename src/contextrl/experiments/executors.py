@@ -1,6 +1,8 @@
 """Executors run the unfinished chunks of a plan and write each one as soon as it is done.
 
-``local`` trains chunk after chunk in this process (each chunk one vmapped, compiled call). ``ray``
+``local`` trains chunk after chunk in this process (each chunk one vmapped, compiled call).
+``processes`` runs one worker process per CPU core on this machine, each training whole chunks, so every
+core is busy with its own chunk instead of sharing small operations with the others. ``ray``
 sends chunks to a Ray cluster (``address``: an existing cluster, or None to start a local one); the
 workers rebuild the plan from the spec, so only the spec and a chunk index travel. Either way a chunk
 that raises is recorded with its error and traceback and the run goes on.
@@ -8,7 +10,10 @@ that raises is recorded with its error and traceback and the run goes on.
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
+import multiprocessing
+import os
 import sys
 import time
 import traceback
@@ -20,7 +25,7 @@ from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
 from contextrl.xla_flags import xla_cpu_workaround
 
-EXECUTORS = ("local", "ray")
+EXECUTORS = ("local", "processes", "ray")
 
 
 @dataclasses.dataclass
@@ -99,12 +104,68 @@ def run_local(
     return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
 
 
-def connect(executor: str, address: str | None) -> None:
-    """Check the executor before a run directory exists: for ``ray``, join (or start) the cluster now,
-    so a wrong ``--address`` is a one-line error and leaves nothing half made."""
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def run_processes(
+    run: RunDir,
+    plan: Plan,
+    *,
+    workers: int | None = None,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    save_params: bool = True,
+) -> Summary:
+    """Run the unfinished chunks on ``workers`` local processes (default: one per CPU core).
+
+    Each worker compiles once per chunk shape and keeps training chunks; results are written here, in
+    the order they finish. Workers are spawned, so a script that calls this needs the usual
+    ``if __name__ == "__main__":`` guard.
+    """
+    start = time.perf_counter()
+    todo, skipped = _pending(run, plan, max_chunks)
+    report = Progress(plan, todo, enabled=progress)
+    workers = max(1, min(workers or _cores(), len(todo)))
+    spec_data = spec_to_dict(plan.spec)
+    ran, failed = [], []
+    context = multiprocessing.get_context(
+        "spawn"
+    )  # a fresh JAX in each worker, never a fork of one
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+        pending = {pool.submit(_remote_chunk, spec_data, chunk): chunk for chunk in todo}
+        for future in concurrent.futures.as_completed(pending):
+            chunk = pending[future]
+            try:
+                result = future.result()
+            except Exception as error:
+                run.record_failure(
+                    chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc()
+                )
+                failed.append(chunk)
+                report(chunk, False)
+                continue
+            run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
+            ran.append(chunk)
+            report(chunk, True)
+    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
+    return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+
+def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
+    """Check the executor before a run directory exists: for ``ray`` (or a protocol that runs on Ray
+    itself, ``on_ray``), join (or start) the cluster now, so a wrong ``--address`` is a one-line
+    error and leaves nothing half made."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
-    if executor != "ray":
+    if executor != "ray" and not on_ray:
+        if address is not None:
+            raise SpecError(
+                f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
+            )
         return
     import ray
 
@@ -122,7 +183,7 @@ def connect(executor: str, address: str | None) -> None:
 
 
 def _remote_chunk(spec_data: dict, chunk: int):
-    """What a Ray worker runs: rebuild the plan from the spec, run one chunk."""
+    """What a worker (Ray's or a local process) runs: rebuild the plan from the spec, run one chunk."""
     xla_cpu_workaround()  # a fresh worker: before its first JAX computation
     plan = expand(parse_spec(spec_data))
     return run_chunk(plan, plan.chunks[chunk])
@@ -186,6 +247,10 @@ def run_chunks(
             max_chunks=max_chunks,
             progress=progress,
             save_params=save_params,
+        )
+    if executor == "processes":
+        return run_processes(
+            run, plan, max_chunks=max_chunks, progress=progress, save_params=save_params
         )
     if executor == "local":
         return run_local(

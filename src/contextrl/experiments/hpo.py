@@ -12,10 +12,11 @@ test contexts. Ray runs locally by default, or on a cluster (``--address``).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import random
 import tempfile
 import time
-import zlib
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -62,6 +63,8 @@ class HPOSpec(CommonSpec):
     population: int = 4
     rounds: int = 8
     steps_per_round: int = 20_000
+
+    runs_on_ray = True
 
     def validate(self) -> None:
         super().validate()
@@ -160,33 +163,46 @@ class HPOSpec(CommonSpec):
 
 
 def _trainable(config: dict) -> None:
-    """One population member on a Ray worker: train a round, report, checkpoint, repeat."""
+    """One population member on a Ray worker: train a round, report, checkpoint, repeat.
+
+    Its keys come from the spec's seed, its member index and the round, so a rerun trains the same.
+    Synchronous PB2 pauses every member at every round and Ray restarts it in a fresh process, so
+    compiled functions go to a persistent JAX cache in the run directory (unless the worker already
+    has one): a restarted member reads its compiled training instead of compiling it again.
+    """
     from ray import tune
 
     from contextrl.agents import evaluate, load_checkpoint, save_checkpoint
     from contextrl.experiments.spec import parse_spec
 
+    if not jax.config.jax_compilation_cache_dir:
+        jax.config.update("jax_compilation_cache_dir", config["compilation_cache"])
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     spec = parse_spec(config["spec"])
     env = spec.make_env()
     train_set = spec.expand()[0]["train"].contexts
     agent = spec.agent_entry()
     hyper = {name: config[name] for name in spec.bounds()}
     agent_config = spec._config(hyper)
-    train = jax.jit(agent.make_train(agent_config, env, train_set))
+    make_train = agent.make_train(agent_config, env, train_set)
+    train = jax.jit(lambda key, params: make_train(key, None, params).params)
     policy = agent.make_policy(agent_config, env, train_set)
     score = jax.jit(lambda p, k: evaluate(policy, p, env, train_set, spec.eval_episodes, k).mean())
-    trial = tune.get_context().get_trial_id()
+    init_key, key = jax.random.split(
+        jax.random.fold_in(jax.random.key(spec.seed), config["member"])
+    )
     params, round_index = None, 0
     checkpoint = tune.get_checkpoint()
     if checkpoint is not None:
         with checkpoint.as_directory() as folder:
             params = load_checkpoint(Path(folder) / "params.npz")
             round_index = int((Path(folder) / "round").read_text())
-    key = jax.random.fold_in(jax.random.key(spec.seed), zlib.crc32(trial.encode()) & 0x7FFFFFFF)
+    elif agent.init_params is not None:  # else the first round compiles its own initialisation
+        params = agent.init_params(agent_config, env, train_set, init_key)
     while True:
         round_key = jax.random.fold_in(key, round_index)
         train_key, eval_key = jax.random.split(round_key)
-        params = train(train_key, None, params).params
+        params = train(train_key, params)
         round_index += 1
         mean_return = float(score(params, eval_key))
         with tempfile.TemporaryDirectory() as folder:
@@ -202,18 +218,83 @@ def _trainable(config: dict) -> None:
             )
 
 
+@contextlib.contextmanager
+def _global_generators_seeded(seed: int):
+    """Python's and numpy's global generators seeded with ``seed`` inside, restored after: Ray's
+    PB2 draws from them and takes no seed."""
+    python_state, numpy_state = random.getstate(), np.random.get_state()
+    random.seed(seed)
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        random.setstate(python_state)
+        np.random.set_state(numpy_state)
+
+
+def seeded_pb2(seed: int, **options):
+    """Ray Tune's PB2 made reproducible from ``seed``.
+
+    Ray's PB2 (on its PBT) picks the member to copy with ``random.choice``, starts the bandit's
+    optimiser from ``np.random`` draws, and acts on results in the order they arrive. Here members
+    wait for each other at every perturbation (``synch``), the bandit's data are kept in a fixed
+    order, every exploit/explore step runs with both global generators seeded from this scheduler's
+    own generator (and restored after), and a member keeps its index (its key stream) when it copies
+    another's parameters and hyper-parameters.
+    """
+    from ray.tune.schedulers.pb2 import PB2
+
+    class SeededPB2(PB2):
+        def __init__(self) -> None:
+            super().__init__(synch=True, **options)
+            self.seeds = np.random.default_rng(seed)
+
+        def _save_trial_state(self, state, time, result, trial):
+            score = super()._save_trial_state(state, time, result, trial)
+            self.data = self.data.sort_values(["Time", "Trial"], kind="stable", ignore_index=True)
+            return score
+
+        def _checkpoint_or_exploit(self, trial, *args):
+            with _global_generators_seeded(int(self.seeds.integers(2**32))):
+                super()._checkpoint_or_exploit(trial, *args)
+
+        def _get_new_config(self, trial, trial_to_clone):
+            config, operations = super()._get_new_config(trial, trial_to_clone)
+            return {**config, "member": trial.config["member"]}, operations
+
+    return SeededPB2()
+
+
 def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
     """Run PB2; return the schedule (one row per member and round) and the best member's result."""
     import ray
     from ray import tune
-    from ray.tune.schedulers.pb2 import PB2
+    from ray.tune.search.basic_variant import BasicVariantGenerator
 
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, log_to_driver=False)
-    from ray.tune.search.basic_variant import BasicVariantGenerator
-
     bounds = spec.bounds()
-    scheduler = PB2(
+    schedule_rows: list[dict] = []
+
+    class Schedule(tune.Callback):
+        """Each member's return and hyper-parameters at every round, as the driver receives them."""
+
+        def on_trial_result(self, iteration, trials, trial, result, **info):
+            member = trial.config["member"]
+            schedule_rows.append(
+                {
+                    "trial": f"member-{member}",
+                    "kind": "pb2",
+                    "variant": spec.variants[0],
+                    "seed": member,
+                    "step": int(result["env_steps"]),
+                    "episode_return": float(result["return"]),
+                    **{f"hp.{name}": float(result[f"hp/{name}"]) for name in bounds},
+                }
+            )
+
+    scheduler = seeded_pb2(
+        spec.seed,
         time_attr="training_iteration",
         perturbation_interval=1,
         hyperparam_bounds={name: list(ends) for name, ends in bounds.items()},
@@ -224,6 +305,8 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
         tune.with_resources(_trainable, {"cpu": 1}),
         param_space={
             "spec": spec_to_dict(spec),
+            "compilation_cache": str((path / "ray" / "jax-cache").resolve()),
+            "member": tune.grid_search(list(range(spec.population))),
             **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
         },
         tune_config=tune.TuneConfig(
@@ -231,40 +314,27 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
             search_alg=BasicVariantGenerator(random_state=spec.seed),
             metric="return",
             mode="max",
-            num_samples=spec.population,
+            num_samples=1,  # the grid over members makes the population
         ),
         run_config=tune.RunConfig(
             name="pb2",
             storage_path=str((path / "ray").resolve()),
             stop={"training_iteration": spec.rounds},
             verbose=1 if progress else 0,
+            callbacks=[Schedule()],
         ),
     )
     grid = tuner.fit()
     errors = [str(error) for error in grid.errors]
     if errors:
         raise RuntimeError(f"PB2 members failed: {errors[0]}")
-    rows = []
-    for member, result in enumerate(grid):
-        frame = result.metrics_dataframe
-        for _, row in frame.iterrows():
-            rows.append(
-                {
-                    "trial": f"member-{member}",
-                    "kind": "pb2",
-                    "variant": spec.variants[0],
-                    "seed": member,
-                    "step": int(row["env_steps"]),
-                    "episode_return": float(row["return"]),
-                    **{f"hp.{name}": float(row[f"hp/{name}"]) for name in bounds},
-                }
-            )
+    schedule = pd.DataFrame(schedule_rows).sort_values(["seed", "step"], ignore_index=True)
     best = grid.get_best_result(metric="return", mode="max", scope="last")
     with best.checkpoint.as_directory() as folder:
         from contextrl.agents import load_checkpoint
 
         params = load_checkpoint(Path(folder) / "params.npz")
-    return pd.DataFrame(rows), {"config": best.config, "params": params}
+    return schedule, {"config": best.config, "params": params}
 
 
 def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.DataFrame]:

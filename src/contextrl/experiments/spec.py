@@ -175,6 +175,7 @@ class CommonSpec:
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
+    runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
 
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
@@ -185,6 +186,7 @@ class CommonSpec:
         if self.max_steps is not None:
             _check_int("max_steps", self.max_steps, 1)
         if not self.trains_agents:
+            self._refuse_agent_fields()
             return
         if not isinstance(self.agent_options, Mapping):
             raise SpecError(agent_options_error(self.agent_options))
@@ -207,6 +209,19 @@ class CommonSpec:
                 agent.config(self.env, self.agent_options, variant)
         except ConfigError as error:
             raise SpecError(f"agent_options: {error}") from None
+
+    def _refuse_agent_fields(self) -> None:
+        """A protocol without agents refuses an agent, environment or variants it would ignore."""
+        defaults = {f.name: f for f in dataclasses.fields(self)}
+        for name in ("env", "agent", "agent_options", "variants", "max_steps"):
+            field = defaults[name]
+            default = field.default_factory() if callable(field.default_factory) else field.default
+            value = getattr(self, name)
+            if value != default and not (name == "variants" and tuple(value) == default):
+                raise SpecError(
+                    f"{name}: the {self.protocol} protocol trains no agent on an environment, so "
+                    f"{name}={value!r} does not apply; leave it out"
+                )
 
     def agent_entry(self):
         """The registered agent of this spec."""

@@ -92,6 +92,23 @@ def contextual_env(env: Env, schedule: ContextSchedule, table) -> ContextualEnv:
     return ContextualEnv(env, schedule_provider(schedule, table))
 
 
+# What the contextual env adds to ``TimeStep.info``; the rest is the environment's ``step_info``.
+CONTEXT_INFO = ("context_id", "next_context_id")
+
+
+def env_step_info(timestep) -> dict:
+    """The environment's own facts of a step (``Env.step_info``: completed, died…), without the ids."""
+    return {name: value for name, value in timestep.info.items() if name not in CONTEXT_INFO}
+
+
+def info_to_host(values: dict) -> dict[str, Any]:
+    """Step facts as Python scalars (bool, int, float) or NumPy arrays, for gymnasium's ``info``."""
+    return {
+        name: value.item() if np.ndim(value) == 0 else np.asarray(value)
+        for name, value in values.items()
+    }
+
+
 _PROGRAM_CACHE: dict[Hashable, Any] = {}
 PROGRAM_CACHE_SIZE = 64
 
@@ -115,9 +132,9 @@ class JaxPrograms:
     """One copy of the core contextual env, compiled: each call one uint32 vector in, one out.
 
     ``begin``/``restart`` (and ``*_with``, which take the episode's context) return the packed state,
-    the first observation, the context vector and the context id; ``advance`` one step without a
-    restart (a gymnasium single env restarts only when asked) returns the packed state, observation,
-    reward and the two end flags.
+    the first observation, the context vector, the environment's step facts (``Env.step_info``) and the
+    context id; ``advance`` one step without a restart (a gymnasium single env restarts only when asked)
+    returns the packed state, observation, reward, step facts and the two end flags.
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
@@ -130,6 +147,10 @@ class JaxPrograms:
             lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
         )
         self.packer = Packer(state)
+        started = jax.eval_shape(
+            lambda key: contextual_env(env, schedule, table).reset(key)[1], jax.random.key(0)
+        )
+        self.info_packer = Packer(env_step_info(started))
         self.begin = cpu_jit(self._begin_fn)
         self.begin_with = cpu_jit(self._begin_with_fn)
         self.restart = cpu_jit(self._restart_fn)
@@ -142,6 +163,7 @@ class JaxPrograms:
                 self.packer.pack(state),
                 _float_bits(timestep.obs),
                 _float_bits(self.space.to_array(state.context)),
+                self.info_packer.pack(env_step_info(timestep)),
                 lax.bitcast_convert_type(state.context_id, jnp.uint32)[None],
             ]
         )
@@ -185,6 +207,7 @@ class JaxPrograms:
                 self.packer.pack(state),
                 _float_bits(timestep.obs),
                 _float_bits(timestep.reward),
+                self.info_packer.pack(env_step_info(timestep)),
                 flags,
             ]
         )
@@ -208,6 +231,9 @@ class JaxBackend:
         self.base_size = int(np.prod(env.base_observation_space.shape))
         self.obs_size = int(np.prod(env.observation_space.shape))
         self.carry: np.ndarray | None = None
+        self.info_packer = self.programs.info_packer
+        # The environment's facts of the last start or step (``Env.step_info``), for gymnasium's info.
+        self.step_info: dict[str, Any] = {}
         self._discrete = self.programs.discrete
         action_words = 1 if self._discrete else int(np.prod(self.action_space.shape))
         self._buffer = np.zeros(self.packer.size + action_words, np.uint32)
@@ -224,7 +250,13 @@ class JaxBackend:
         obs = out[size : size + self.obs_size].view(np.float32).copy()
         context_start = size + self.obs_size
         context_vector = out[context_start : context_start + features].view(np.float32).copy()
+        info_start = context_start + features
+        self._read_step_info(out[info_start : info_start + self.info_packer.size])
         return obs, context_vector, int(out[-1].view(np.int32))
+
+    def _read_step_info(self, words: np.ndarray) -> None:
+        if self.info_packer.size:
+            self.step_info = info_to_host(self.info_packer.unpack_host(words))
 
     @staticmethod
     def _override_words(override: tuple[np.ndarray, int]) -> np.ndarray:
@@ -288,6 +320,7 @@ class JaxBackend:
         self.carry = out[:size]
         values = out.view(np.float32)
         end = size + self.obs_size
+        self._read_step_info(out[end + 1 : end + 1 + self.info_packer.size])
         return values[size:end].copy(), float(values[end]), bool(out[-2]), bool(out[-1])
 
     def physics_and_context(self) -> tuple[Any, Any]:
@@ -301,11 +334,12 @@ class JaxBackend:
 
 def steps_on_host(env: Env) -> bool:
     """Whether ``env`` offers the scalar host path (``host_transition`` and ``host_observe``) and its
-    steps draw no random numbers (every draw comes from the JAX key, so those step in JAX)."""
+    steps draw no random numbers (every draw comes from the JAX key, so those step in JAX) nor report
+    facts (``step_info``, computed by the compiled step only)."""
     offers = callable(getattr(env, "host_transition", None)) and callable(
         getattr(env, "host_observe", None)
     )
-    return offers and not env.steps_need_key
+    return offers and not env.steps_need_key and type(env).step_info is Env.step_info
 
 
 class ScalarBackend(JaxBackend):

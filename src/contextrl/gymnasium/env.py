@@ -86,8 +86,9 @@ class ContextualGymEnv(gymnasium.Env):
     None (the original observation), "all", "varying" or a list of names, appended to the observation, or
     given as ``{"obs": ..., "context": ...}`` with ``obs_context_as_dict=True``. ``max_steps`` is the time
     limit (None: the original environment's); the environment owns it, so no ``TimeLimit`` wrapper is
-    registered. ``info`` holds ``context_id`` (the set's id; -1 for resampled or given contexts) and
-    ``context`` (feature name → value). ``reset(options={"context": {...}})`` or
+    registered. ``info`` holds ``context_id`` (the set's id; -1 for resampled or given contexts),
+    ``context`` (feature name → value) and the environment's own facts of the episode (its
+    ``step_info``, e.g. the platformer's ``completed``, ``died`` and ``distance``). ``reset(options={"context": {...}})`` or
     ``options={"context_id": id}`` sets the context of one episode.
 
     ``copy_index``/``num_copies`` are for vector environments: copy ``i`` asks the selector for episode
@@ -232,11 +233,13 @@ class ContextualGymEnv(gymnasium.Env):
         return self._values_of_member[index]
 
     def _fresh_info(self) -> dict[str, Any]:
-        """A new info dict per call (users keep them; gymnasium's checker insists), with what a host
-        environment reports of its episode (``HostEnv.step_info``)."""
+        """A new info dict per call (users keep them; gymnasium's checker insists), with what the
+        environment reports of its episode (``step_info``: e.g. completed, died, distance)."""
         info = {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
         if isinstance(self.backend, HostBackend):
             info.update(self.contextrl_env.step_info())
+        else:
+            info.update(self.backend.step_info)
         return info
 
     def step(self, action):

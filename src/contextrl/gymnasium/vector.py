@@ -30,7 +30,12 @@ from contextrl.context.features import ContextError
 from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
-from contextrl.gymnasium.backends import context_table, contextual_env, shared_program
+from contextrl.gymnasium.backends import (
+    context_table,
+    contextual_env,
+    env_step_info,
+    shared_program,
+)
 from contextrl.gymnasium.env import (
     ContextualGymEnv,
     build_env,
@@ -48,7 +53,7 @@ class VectorPrograms:
     The state stays on the device as one uint32 array (a row per copy); each step takes it, the
     actions and the context set, and returns it with one float32 array: a row per copy holding the
     observation, reward, end flags, final observation, context ids (and, when contexts are resampled,
-    the episode's context).
+    the episode's context), then the environment's facts of the step (``Env.step_info``).
     Programs are shared by equal configurations; the context set is an argument.
     """
 
@@ -62,6 +67,14 @@ class VectorPrograms:
             lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
         )
         self.packer = Packer(state)
+        started = jax.eval_shape(
+            lambda key: contextual_env(env, schedule, table).reset(key)[1], jax.random.key(0)
+        )
+        # name → (dtype, values per copy) of the environment's step facts, in row order.
+        self.step_info = {
+            name: (np.dtype(value.dtype), int(np.prod(value.shape)))
+            for name, value in env_step_info(started).items()
+        }
         self.reset = jax.jit(self._reset)
         self.step = jax.jit(self._step, donate_argnums=0)
 
@@ -103,6 +116,10 @@ class VectorPrograms:
                     [jax.vmap(self.space.to_array)(state.context)]
                     if self.schedule.resamples
                     else []
+                ),
+                *(
+                    value.reshape(count, -1).astype(jnp.float32)
+                    for value in env_step_info(timestep).values()
                 ),
             ],
             axis=1,
@@ -210,6 +227,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self._carry: jax.Array | None = None  # stays on the device between steps
         self._obs_slice = slice(0, self.obs_size)
         self._final_slice = slice(self.obs_size + 3, 2 * self.obs_size + 3)
+        resampled = len(self.context_space) if self.schedule.resamples else 0
+        self._context_slice = slice(2 * self.obs_size + 5, 2 * self.obs_size + 5 + resampled)
+        self._step_info_start = self._context_slice.stop
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
@@ -241,10 +261,25 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
     def _update_values(self, rows: np.ndarray, changed: np.ndarray) -> None:
         """The context values of the copies whose episode changed: from the set, or as they came back."""
         if self.schedule.resamples:
-            fresh = rows[:, 2 * self.obs_size + 5 :]
+            fresh = rows[:, self._context_slice]
         else:
             fresh = self._table_host[rows[:, 2 * self.obs_size + 4].astype(np.int64)]
         self._values = np.where(changed[:, None], fresh, self._values)
+
+    def _step_info(self, rows: np.ndarray) -> dict[str, Any]:
+        """The environment's facts of the step per copy (``Env.step_info``: completed, died…)."""
+        info: dict[str, Any] = {}
+        start = self._step_info_start
+        for name, (dtype, size) in self.programs.step_info.items():
+            values = rows[:, start : start + size]
+            start += size
+            if dtype == np.bool_:
+                values = values > 0.5
+            elif np.issubdtype(dtype, np.integer):
+                values = values.astype(np.int64)
+            info[name] = values[:, 0] if size == 1 else values
+            info[f"_{name}"] = self._everyone
+        return info
 
     def _info(self, rows: np.ndarray) -> dict[str, Any]:
         return {
@@ -252,6 +287,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             "_context_id": self._everyone,
             "context": self._context_info(),
             "_context": self._everyone,
+            **self._step_info(rows),
         }
 
     def _overrides(self, options: dict[str, Any] | None):
@@ -336,9 +372,12 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         if done.any():
             info["final_obs"] = self._observations(rows[:, self._final_slice])
             info["_final_obs"] = done
+            # The step facts are the ended episode's (taken before the restart), as in ``info``.
+            facts = self._step_info(rows)
             info["final_info"] = {
                 "context_id": self._user_ids(rows[:, 2 * d + 3]),
                 "_context_id": done,
+                **{name: done if name.startswith("_") else value for name, value in facts.items()},
             }
             info["_final_info"] = done
         return self._observations(rows[:, self._obs_slice]), rows[:, d], terminated, truncated, info

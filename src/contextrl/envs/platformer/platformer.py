@@ -4,7 +4,8 @@ The level is never stored. Every tile is a pure function of the context and its 
 into segments of ``SEGMENT`` columns, and each segment's layout (gap, ground height, pipe, floating
 bricks, enemy) is drawn from an integer hash of (``noise_seed``, ``level_index``, segment). So thousands
 of copies each play their own level at no memory cost, a reset regenerates nothing, and the same
-context gives the same level in every copy and every episode. Enemies patrol their segment back and forth
+context gives the same level in every copy and every episode. A step hashes only the few segments around
+the agent (:func:`level_window`) and reads every column it looks at from them. Enemies patrol their segment back and forth
 as a closed-form function of the episode clock, so the state only records which were stomped.
 
 Every level is playable: the widest gap, the highest step and the tallest pipe are computed from the
@@ -289,9 +290,13 @@ def jump_reach(context) -> dict[str, jax.Array]:
     def travelled(steps):  # tiles covered in ``steps`` steps of running from rest
         return run * (steps - keep * (1.0 - keep**steps) / (1.0 - keep))
 
+    # Steps still on the run-up: the powers of ``keep`` by products (``keep**steps`` for every step
+    # would cost more than the rest of the step; this runs in every step, the level being no state).
     room = RUN_UP - AGENT_WIDTH - 0.5
-    steps = jnp.arange(1, REACH_STEPS + 1, dtype=jnp.float32)
-    take_off = jnp.sum(travelled(steps) <= room).astype(jnp.float32)  # steps still on the run-up
+    take_off, kept, lag = jnp.zeros_like(keep), jnp.ones_like(keep), keep / (1.0 - keep)
+    for steps in range(1, REACH_STEPS + 1):
+        kept = kept * keep
+        take_off = take_off + (run * (steps - lag * (1.0 - kept)) <= room)
 
     launch = jump - g / 2  # the discrete arc is the continuous one launched at J − g/2
     apex = launch**2 / (2 * g)
@@ -368,12 +373,39 @@ def enemy_x(layout, clock):
     return layout["patrol_from"] + jnp.where(walked < span, walked, 2 * span - walked)
 
 
-def column_profile(context, reach, columns):
+def level_window(context, reach, first_column, width: int):
+    """The layouts of the segments that columns ``first_column`` … ``first_column + width - 1`` span.
+
+    A step looks at a few neighbouring columns (the collision patch, the observation window): their
+    segments are hashed once here, and :func:`window_columns` gives each column its segment's layout
+    by choosing among them, instead of hashing its segment again per column.
+    Returns (first segment, layouts with one entry per segment).
+    """
+    first = segment_of(first_column)
+    count = (width + SEGMENT - 2) // SEGMENT + 1  # the most segments ``width`` columns can span
+    return first, segments(context, reach, first + jnp.arange(count))
+
+
+def window_columns(window, columns):
+    """Each column's segment layout (arrays shaped like ``columns``), chosen from ``window``'s."""
+    first, layout = window
+    index = segment_of(columns) - first
+    count = layout["gap"].shape[-1]
+
+    def choose(values):
+        chosen = values[count - 1]
+        for k in range(count - 2, -1, -1):
+            chosen = jnp.where(index == k, values[k], chosen)
+        return chosen
+
+    return {name: choose(values) for name, values in layout.items()}
+
+
+def column_profile(context, layout, columns):
     """Each column's vertical extents (int arrays shaped like ``columns``): ground, pipe, bricks,
-    flag pole (empty extents are [0, 0)), and whether it is lava-floored or wall."""
-    segment = segment_of(columns)
-    layout = segments(context, reach, segment)
-    offset = columns - (segment * SEGMENT - START_AREA)
+    flag pole (empty extents are [0, 0)), and whether it is lava-floored or wall. ``layout`` holds each
+    column's segment layout (from :func:`segments` or :func:`window_columns`)."""
+    offset = columns - (segment_of(columns) * SEGMENT - START_AREA)
     width = context.level_width
     shaped = ~(columns >= width - FLAT_END)  # gaps, pipes and bricks only before the flat end
     style = context.level_index
@@ -396,13 +428,8 @@ def column_profile(context, reach, columns):
     }
 
 
-def tiles(context, reach, columns, rows):
-    """Tile kinds at (columns, rows) (broadcast int arrays): the level as a pure function.
-
-    Each column's profile is computed once and kept apart from the per-tile tests by an optimisation
-    barrier: fused into them, the compiler would hash the column's segment again for every tile.
-    """
-    profile = jax.lax.optimization_barrier(column_profile(context, reach, columns))
+def tile_kinds(profile, rows):
+    """Tile kinds at ``rows`` (int array broadcasting with the profile's columns)."""
     inside = (rows >= 0) & (rows < ROWS)
     ground = (rows >= profile["ground_from"]) & (rows < profile["ground_to"])
     pipe = (rows >= profile["pipe_from"]) & (rows < profile["pipe_to"])
@@ -414,6 +441,22 @@ def tiles(context, reach, columns, rows):
     kind = jnp.where(bricks, BRICK, kind)
     kind = jnp.where(pipe & inside, PIPE, kind)
     return jnp.where(ground, GROUND, kind)
+
+
+def window_tiles(context, window, columns, rows):
+    """Tile kinds at (columns, rows) (broadcast int arrays), the columns inside ``window``.
+
+    Each column's profile is computed once and kept apart from the per-tile tests by an optimisation
+    barrier: fused into them, the compiler would compute it again for every tile.
+    """
+    profile = column_profile(context, window_columns(window, columns), columns)
+    return tile_kinds(jax.lax.optimization_barrier(profile), rows)
+
+
+def tiles(context, reach, columns, rows):
+    """Tile kinds at (columns, rows) (broadcast int arrays), any columns: the level as a pure function."""
+    layout = segments(context, reach, segment_of(columns))
+    return tile_kinds(column_profile(context, layout, columns), rows)
 
 
 def _solid(kind):
@@ -521,11 +564,11 @@ def is_defeated(defeated, segment) -> jax.Array:
 
 def _defeat(defeated, segment, hit):
     """``defeated`` with the bit of each ``segment`` (1-d) set where ``hit``."""
-    words = jnp.arange(DEFEATED_WORDS)
-    for i in range(segment.shape[0]):
-        bit = hit[i].astype(jnp.uint32) << (segment[i] & 31).astype(jnp.uint32)
-        defeated = defeated | jnp.where(words == segment[i] >> 5, bit, jnp.uint32(0))
-    return defeated
+    bits = hit.astype(jnp.uint32) << (segment & 31).astype(jnp.uint32)
+    # Added into their words (distinct segments: distinct bits) by a scatter, which the compiler keeps
+    # apart: a select per word would repeat the whole stomp test for each of them.
+    gained = jnp.zeros_like(defeated).at[segment >> 5].add(bits, mode="drop")
+    return defeated | gained
 
 
 def current_form(state, context) -> jax.Array:
@@ -579,8 +622,11 @@ def step_physics(state: PlatformerState, action, context):
     corner = jnp.stack([jnp.floor(state.x), jnp.floor(state.y)]).astype(jnp.int32) - jnp.array(
         [1, 2]
     )
-    patch = tiles(
-        context, reach, corner[0] + jnp.arange(4)[None, :], corner[1] + jnp.arange(7)[:, None]
+    # The patch's columns and the enemies the agent can touch after the move (those of the segment
+    # it stands in and the next) lie in three segments from the patch's first column on.
+    near = level_window(context, reach, corner[0], 2 * SEGMENT)
+    patch = window_tiles(
+        context, near, corner[0] + jnp.arange(4)[None, :], corner[1] + jnp.arange(7)[:, None]
     )
     x = state.x + vx
     blocked_x = _box_hits_solid(patch, corner, x, state.y, height)
@@ -605,37 +651,43 @@ def step_physics(state: PlatformerState, action, context):
     flying = fireball_steps > 0
     fx = fireball[0] + fireball[2] * FIREBALL_SPEED * flying
     fy = fireball[1]
-    column = jnp.stack([jnp.floor(x), jnp.floor(x), jnp.floor(fx)]).astype(jnp.int32)
-    segment = segment_of(column) + jnp.array([0, 1, 0])
-    layout = segments(context, reach, segment)
+    # Enemies stay inside their segment, so only those of the window can touch the agent.
+    first, layout = near
+    segment = first + jnp.arange(layout["enemy"].shape[-1])
     alive = layout["enemy"] & ~is_defeated(state.defeated, segment)
     ex = enemy_x(layout, clock.astype(jnp.float32))
     ey = layout["height"].astype(jnp.float32)
 
     # Stomp from above, otherwise get hurt.
     touch = (
-        alive[:2]
-        & (x < ex[:2] + ENEMY_SIZE)
-        & (x + AGENT_WIDTH > ex[:2])
-        & (y < ey[:2] + ENEMY_SIZE)
-        & (y + height > ey[:2])
+        alive
+        & (x < ex + ENEMY_SIZE)
+        & (x + AGENT_WIDTH > ex)
+        & (y < ey + ENEMY_SIZE)
+        & (y + height > ey)
     )
-    stomp = touch & (vy < 0) & (state.y >= ey[:2] + ENEMY_SIZE * 0.5)
+    stomp = touch & (vy < 0) & (state.y >= ey + ENEMY_SIZE * 0.5)
     hurt = jnp.any(touch & ~stomp) & (state.invulnerable == 0)
     vy = jnp.where(jnp.any(stomp), STOMP_BOUNCE * context.jump_speed, vy)
-    defeated = _defeat(state.defeated, segment[:2], stomp)
+    defeated = _defeat(state.defeated, segment, stomp)
 
     # The fire form throws a fireball with the run button; it flies straight and burns one enemy.
+    fire_column = jnp.floor(fx).astype(jnp.int32)
+    fire_window = level_window(context, reach, fire_column, 1)
+    fire_segment = fire_window[0][None]
+    fire_layout = fire_window[1]
+    fire_ex = enemy_x(fire_layout, clock.astype(jnp.float32))[0]
+    fire_ey = fire_layout["height"][0].astype(jnp.float32)
     burn = (
         flying
-        & alive[2]
-        & ~is_defeated(defeated, segment[2])
-        & (jnp.abs(fx - (ex[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
-        & (jnp.abs(fy - (ey[2] + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+        & fire_layout["enemy"][0]
+        & ~is_defeated(defeated, fire_segment)[0]
+        & (jnp.abs(fx - (fire_ex + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
+        & (jnp.abs(fy - (fire_ey + ENEMY_SIZE / 2)) < (ENEMY_SIZE + FIREBALL_SIZE) / 2)
     )
-    defeated = _defeat(defeated, segment[2:], burn[None])
+    defeated = _defeat(defeated, fire_segment, burn[None])
     hits_wall = _solid(
-        tiles(context, reach, jnp.floor(fx).astype(jnp.int32), jnp.floor(fy).astype(jnp.int32))
+        window_tiles(context, fire_window, fire_column, jnp.floor(fy).astype(jnp.int32))
     )
     fireball_steps = jnp.where(flying & ~burn & ~hits_wall, fireball_steps - 1, 0)
     fireball = jnp.stack([fx, fy, fireball[2]])
@@ -683,11 +735,13 @@ def tile_observation(state: PlatformerState, context) -> jax.Array:
     row = jnp.floor(state.y).astype(jnp.int32)
     columns = column - VIEW_BEHIND + jnp.arange(VIEW_COLS)
     rows = row - VIEW_BELOW + jnp.arange(VIEW_ROWS)
+    window = level_window(context, reach, columns[0], VIEW_COLS)
     # Materialised once: fused, each channel below would compute the tiles again.
-    kinds = jax.lax.optimization_barrier(tiles(context, reach, columns[None, :], rows[:, None]))
-    first = segment_of(columns[0])
-    segment = first + jnp.arange(3)  # a window of 12 columns spans at most 3 segments
-    layout = segments(context, reach, segment)
+    kinds = jax.lax.optimization_barrier(
+        window_tiles(context, window, columns[None, :], rows[:, None])
+    )
+    first, layout = window
+    segment = first + jnp.arange(layout["enemy"].shape[-1])
     alive = layout["enemy"] & ~is_defeated(state.defeated, segment)
     enemy_column = jnp.floor(enemy_x(layout, state.clock.astype(jnp.float32)) + ENEMY_SIZE / 2)
     enemy_row = layout["height"]

@@ -189,7 +189,8 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
     first_row = jnp.floor(bottom).astype(jnp.int32)
     columns = first_column + jnp.arange(cols + 1)
     grid_rows = first_row + jnp.arange(rows + 1)
-    kinds = world.tiles(context, reach, columns[None, :], grid_rows[:, None])
+    window = world.level_window(context, reach, first_column, cols + 1)
+    kinds = world.window_tiles(context, window, columns[None, :], grid_rows[:, None])
     column = jnp.floor(px).astype(jnp.int32) - first_column
     row = jnp.floor(py).astype(jnp.int32) - first_row
     kind = kinds[jnp.clip(row, 0, rows), jnp.clip(column, 0, cols)]
@@ -206,9 +207,10 @@ def draw_view(state, context, cols: int, rows: int, tile_pixels: int):
     pole = (kind == world.FLAG) & (entry == 2)
     image = jnp.where(pole[..., None], jnp.asarray(FLAG_COLOR), image)
 
-    # Enemies of the segments in view, the fireball, then the agent (blinking while invulnerable).
-    segment = world.segment_of(first_column) + jnp.arange(cols // world.SEGMENT + 2)
-    layout = world.segments(context, reach, segment)
+    # Enemies of the segments in view (none leaves its segment), the fireball, then the agent
+    # (blinking while invulnerable).
+    first_segment, layout = window
+    segment = first_segment + jnp.arange(layout["enemy"].shape[-1])
     alive = layout["enemy"] & ~world.is_defeated(state.defeated, segment)
     enemy_x = world.enemy_x(layout, state.clock.astype(jnp.float32))
     for i in range(segment.shape[0]):
