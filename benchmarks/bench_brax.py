@@ -2,134 +2,201 @@
 
     python benchmarks/bench_brax.py [--envs Ant,HalfCheetah] [--sizes 1,64,256,1024] [--steps 20]
 
+Everything is stepped through the project's one stepping path, ``crl.with_contexts(env, contexts)``
+with ``reset_copies``/``step_copies`` (what the agents and the gymnasium vector face run): copy i keeps
+context i of a batch drawn per copy, episodes end and restart (a new context chosen) inside the loop.
+
 1. Per-copy contexts against one shared system: Ant and HalfCheetah at 256 copies, each copy with its
    own gravity, friction, torso mass and actuator strength, against brax's own environment
-   (``brax.envs.create``: the same time limit and auto-reset) vmapped with one system for all copies,
-   in the same loop and the same run. Also with MuJoCo's medium model on (``fluid=True``, which adds
-   the ``viscosity`` feature), which MJX then evaluates at every physics step.
-2. Steps/s of every environment at 1, 64, 256 and 1,024 copies (MJX), with the compile time.
-3. Changing context values never recompiles: one compiled step is called with new values of every
-   feature and the number of traces is counted.
+   (``brax.envs.create``: ``get_environment`` with brax's time limit and auto-reset) vmapped with one
+   system for all copies. Both are compiled first, then timed in alternating calls, so the load of a
+   shared machine falls on both alike.
+2. Steps/s of every environment at 1, 64, 256 and 1,024 copies (MJX), random actions, with the compile
+   time (XLA's backend compilations, summed from ``jax.monitoring``) and a check that new context values
+   never recompile: the compiled rollout takes the contexts as an argument and is called again with a
+   second, independently drawn batch; the jitted function's cache and XLA's compilation count must not
+   grow.
 """
 
 import argparse
+import os
+import time
 
 import jax
 import jax.numpy as jnp
-from _scan import observing, random_rollout, steps_per_second
 
 import contextrl as crl
 from contextrl.envs import brax as family
 
 SIZES = (1, 64, 256, 1024)
+COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
+compilations: list[float] = []  # seconds of every XLA compilation in this process
+jax.monitoring.register_event_duration_secs_listener(
+    lambda event, seconds, **_: compilations.append(seconds) if event == COMPILE_EVENT else None
+)
 
 
-def per_copy_contexts(env, n: int):
+def per_copy_contexts(env, n: int, key):
     """``n`` contexts spread around the default: gravity, friction, torso mass and actuator strength."""
-    default = env.default_context()
-    spec = {
-        "gravity": crl.Uniform(5.0, 15.0),
-        "actuator_strength": crl.Uniform(0.5, 1.5),
-    }
+    spec = {"gravity": crl.Uniform(5.0, 15.0), "actuator_strength": crl.Uniform(0.5, 1.5)}
     if "friction" in env.context_space.names:
         spec["friction"] = crl.Uniform(0.5, 1.5)
     if "mass_torso" in env.context_space.names:
-        torso = float(default.mass_torso)
+        torso = env.context_space.features["mass_torso"].default
         spec["mass_torso"] = crl.Uniform(0.5 * torso, 1.5 * torso)
-    return crl.sample(env, spec, n, jax.random.key(0))
+    if not env.has_gravity:
+        del spec["gravity"]
+    return crl.sample(env, spec, n, key)
 
 
-def ours(env, n: int):
-    contexts = per_copy_contexts(env, n)
-    return random_rollout(*observing(env), env.action_space.sample, contexts, STEPS)
+def contextual_rollout(env, n: int, steps: int):
+    """jit((key, contexts) → checksum): ``n`` copies through ``ContextualEnv`` for ``steps`` random steps."""
+
+    def run(key, contexts):
+        contextual = crl.with_contexts(env, contexts)
+        reset_key, key = jax.random.split(key)
+        state, timestep = contextual.reset_copies(reset_key, n)
+
+        def body(carry, action_key):
+            state, total = carry
+            actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, n))
+            state, timestep = contextual.step_copies(state, actions)
+            return (state, total + jnp.sum(timestep.obs)), None
+
+        start = (state, jnp.sum(timestep.obs))
+        (_, total), _ = jax.lax.scan(body, start, jax.random.split(key, steps))
+        return total
+
+    return jax.jit(run)
 
 
-def brax_shared(env, n: int):
-    """brax's own environment: one system for every copy, its time limit and auto-reset wrappers."""
+def brax_rollout(env, n: int, steps: int):
+    """jit((key, unused) → checksum): brax's own environment, one system for every copy, vmapped."""
     from brax import envs as brax_envs
 
     stock = brax_envs.create(env.brax_name, episode_length=env.max_steps, backend=env.backend)
 
-    def reset(key, _):
-        state = stock.reset(key)
-        return state, state.obs
+    def run(key, _):
+        reset_key, key = jax.random.split(key)
+        state = jax.vmap(stock.reset)(jax.random.split(reset_key, n))
 
-    def step(key, state, action, _):
-        state = stock.step(state, action)
-        return state, state.obs
+        def body(carry, action_key):
+            state, total = carry
+            actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, n))
+            state = jax.vmap(stock.step)(state, actions)
+            return (state, total + jnp.sum(state.obs)), None
 
-    return random_rollout(reset, step, env.action_space.sample, jnp.zeros(n), STEPS)
+        (_, total), _ = jax.lax.scan(
+            body, (state, jnp.sum(state.obs)), jax.random.split(key, steps)
+        )
+        return total
+
+    return jax.jit(run)
 
 
-def compare_with_brax(names, n: int) -> None:
-    print(f"\nPer-copy contexts vs brax's one shared system, {n} copies, {STEPS} steps (MJX)")
+def first_call(run, argument) -> float:
+    """Compiles ``run`` by calling it once; returns the seconds XLA spent compiling."""
+    before = len(compilations)
+    run(jax.random.key(0), argument).block_until_ready()
+    return sum(compilations[before:])
+
+
+def seconds_of(run, key, argument) -> float:
+    start = time.perf_counter()
+    run(key, argument).block_until_ready()
+    return time.perf_counter() - start
+
+
+def compare_with_brax(names, n: int, steps: int, rounds: int) -> None:
     print(
-        f"{'env':>14} {'brax shared':>12} {'ours':>10} {'ratio':>6} {'ours, fluid':>15} {'ratio':>6}"
+        f"\nPer-copy contexts vs brax's one shared system, {n} copies, {steps} steps per call, best of"
+        f" {rounds} alternating calls (MJX); 'ours, default' is the same compiled program given the"
+        " default context in every copy"
+    )
+    print(
+        f"{'env':>14} {'brax shared':>12} {'ours':>10} {'ratio':>6} {'ours, default':>14} {'ratio':>6}"
     )
     for name in names:
         env = getattr(family, name)()
-        _, theirs = steps_per_second(brax_shared(env, n), n, STEPS)
-        _, mine = steps_per_second(ours(env, n), n, STEPS)
-        _, wet = steps_per_second(ours(getattr(family, name)(fluid=True), n), n, STEPS)
+        ours = contextual_rollout(env, n, steps)
+        defaults = env.context_space.stack([env.default_context()] * n)
+        sides = (
+            (brax_rollout(env, n, steps), jnp.zeros(())),
+            (ours, per_copy_contexts(env, n, jax.random.key(1))),
+            (ours, defaults),
+        )
+        for run, argument in sides[:2]:
+            first_call(run, argument)
+        best = [float("inf")] * len(sides)
+        for i in range(rounds):
+            for side, (run, argument) in enumerate(sides):
+                best[side] = min(best[side], seconds_of(run, jax.random.key(i + 1), argument))
+        theirs, mine, default = (n * steps / s for s in best)
         print(
-            f"{name:>14} {theirs:>12.4g} {mine:>10.4g} {mine / theirs:>6.2f} {wet:>15.4g}"
-            f" {wet / theirs:>6.2f}",
+            f"{name:>14} {theirs:>12.4g} {mine:>10.4g} {mine / theirs:>6.2f} {default:>14.4g}"
+            f" {default / theirs:>6.2f}",
             flush=True,
         )
 
 
-def no_recompilation(name: str) -> None:
-    """One compiled step, called with every feature moved to a new value: traced once."""
-    env = getattr(family, name)()
-    traces = []
+def steps_for(n: int, rate: float | None, seconds: float) -> int:
+    """Steps per timed call: 20 at first, then about ``seconds`` at the rate of the previous size
+    (at least 5, at most 100): MJX tasks differ by 100x in speed on a CPU."""
+    if rate is None:
+        return 20
+    return int(max(5, min(100, rate * seconds / n)))
 
-    def step(key, state, action, context):
-        traces.append(1)
-        return env.step(key, state, action, context)
 
-    compiled = jax.jit(step)
-    key = jax.random.key(0)
-    state, _ = jax.jit(env.reset)(key, env.default_context())
-    action = jnp.zeros(env.action_space.shape)
-    compiled(key, state, action, env.default_context())
-    for feature_name, f in env.context_space.features.items():
-        value = f.upper if f.kind != "categorical" else (f.default + 1) % len(f.choices)
-        compiled(key, state, action, env.context(**{feature_name: value}))
+def table(names, sizes, seconds: float) -> None:
     print(
-        f"\n{name}: one compiled step called with {len(env.context_space) + 1} different contexts,"
-        f" traced {len(traces)} time(s)",
-        flush=True,
+        "\nEvery environment, each copy with its own context, through ContextualEnv.step_copies (MJX)"
     )
+    print(
+        f"{'env':>24} {'copies':>7} {'steps':>6} {'compile s':>10} {'steps/s':>10}"
+        f" {'recompiles on new contexts':>27}"
+    )
+    for name in names:
+        env = getattr(family, name)()
+        rate = None
+        for n in sizes:
+            steps = steps_for(n, rate, seconds)
+            run = contextual_rollout(env, n, steps)
+            first, second = (per_copy_contexts(env, n, jax.random.key(k)) for k in (1, 2))
+            compile_s = first_call(run, first)
+            before = len(compilations)
+            best = min(seconds_of(run, jax.random.key(k), c) for k, c in ((1, second), (2, first)))
+            rate = n * steps / best
+            recompiles = len(compilations) - before + run._cache_size() - 1
+            print(
+                f"{name:>24} {n:>7} {steps:>6} {compile_s:>10.1f} {rate:>10.3g} {recompiles:>27}",
+                flush=True,
+            )
 
 
 def main() -> None:
-    global STEPS
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", default=",".join(c.__name__ for c in family.ENVIRONMENTS))
     parser.add_argument("--sizes", default=",".join(map(str, SIZES)))
-    parser.add_argument("--steps", type=int, default=20, help="random steps per copy per timing")
+    parser.add_argument("--seconds", type=float, default=2.0, help="aimed length of a timed call")
+    parser.add_argument("--compare-steps", type=int, default=20)
+    parser.add_argument("--rounds", type=int, default=3, help="alternating timed calls per side")
     parser.add_argument("--skip-compare", action="store_true")
+    parser.add_argument("--skip-table", action="store_true")
     args = parser.parse_args()
-    STEPS = args.steps
     names = args.envs.split(",")
-    sizes = [int(s) for s in args.sizes.split(",")]
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     print(
-        f"jax {jax.__version__} on {jax.devices()[0].platform}, {STEPS} random steps per copy",
+        f"jax {jax.__version__} on {jax.devices()[0].platform}, {os.cpu_count()} cores shared with other"
+        f" jobs (load average at start {load})",
         flush=True,
     )
-    no_recompilation("InvertedPendulum")
     if not args.skip_compare:
-        compare_with_brax([n for n in ("Ant", "HalfCheetah") if n in names], 256)
-    print("\nEvery environment, each copy with its own context (MJX)")
-    print(f"{'env':>24} {'copies':>7} {'compile s':>10} {'steps/s':>10}")
-    for name in names:
-        env = getattr(family, name)()
-        for n in sizes:
-            compile_s, rate = steps_per_second(ours(env, n), n, STEPS, repeats=2)
-            print(f"{name:>24} {n:>7} {compile_s:>10.1f} {rate:>10.3g}", flush=True)
+        compared = [n for n in ("Ant", "HalfCheetah") if n in names]
+        compare_with_brax(compared, 256, args.compare_steps, args.rounds)
+    if not args.skip_table:
+        table(names, [int(s) for s in args.sizes.split(",")], args.seconds)
+    print(f"\nload average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
-
-STEPS = 20
 
 if __name__ == "__main__":
     main()
