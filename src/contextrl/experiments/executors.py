@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import dataclasses
+import functools
 import multiprocessing
 import os
 import sys
@@ -75,6 +76,18 @@ def _trial_ids(plan: Plan, chunk: int) -> list[str]:
     return [plan.trials[i].id for i in plan.chunks[chunk]]
 
 
+def _settle(run: RunDir, plan: Plan, chunk: int, fetch: Callable, save_params: bool) -> bool:
+    """Save a finished chunk's result, or record its failure (a failing trial must not kill the run);
+    whether it succeeded."""
+    try:
+        result = fetch()
+    except Exception as error:
+        run.record_failure(chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc())
+        return False
+    run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
+    return True
+
+
 def run_local(
     run: RunDir,
     plan: Plan,
@@ -90,16 +103,11 @@ def run_local(
     report = Progress(plan, todo, enabled=progress)
     ran, failed = [], []
     for chunk in todo:
-        try:
-            result = chunk_runner(plan, plan.chunks[chunk])
-        except Exception as error:  # a failing trial must not kill the run
-            run.record_failure(chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc())
-            failed.append(chunk)
-            report(chunk, False)
-            continue
-        run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
-        ran.append(chunk)
-        report(chunk, True)
+        ok = _settle(
+            run, plan, chunk, functools.partial(chunk_runner, plan, plan.chunks[chunk]), save_params
+        )
+        (ran if ok else failed).append(chunk)
+        report(chunk, ok)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
 
@@ -139,18 +147,9 @@ def run_processes(
         pending = {pool.submit(_remote_chunk, spec_data, chunk): chunk for chunk in todo}
         for future in concurrent.futures.as_completed(pending):
             chunk = pending[future]
-            try:
-                result = future.result()
-            except Exception as error:
-                run.record_failure(
-                    chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc()
-                )
-                failed.append(chunk)
-                report(chunk, False)
-                continue
-            run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
-            ran.append(chunk)
-            report(chunk, True)
+            ok = _settle(run, plan, chunk, future.result, save_params)
+            (ran if ok else failed).append(chunk)
+            report(chunk, ok)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
 
@@ -214,16 +213,9 @@ def run_ray(
     while pending:
         done, _ = ray.wait(list(pending), num_returns=1)
         chunk = pending.pop(done[0])
-        try:
-            result = ray.get(done[0])
-        except Exception as error:
-            run.record_failure(chunk, _trial_ids(plan, chunk), repr(error), traceback.format_exc())
-            failed.append(chunk)
-            report(chunk, False)
-            continue
-        run.save_chunk(chunk, result, _trial_ids(plan, chunk), save_params)
-        ran.append(chunk)
-        report(chunk, True)
+        ok = _settle(run, plan, chunk, functools.partial(ray.get, done[0]), save_params)
+        (ran if ok else failed).append(chunk)
+        report(chunk, ok)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
 
