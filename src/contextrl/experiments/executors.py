@@ -18,7 +18,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir
@@ -88,6 +88,29 @@ def _settle(run: RunDir, plan: Plan, chunk: int, fetch: Callable, save_params: b
     return True
 
 
+def _drive(
+    run: RunDir,
+    plan: Plan,
+    max_chunks: int | None,
+    progress: bool,
+    save_params: bool,
+    finished: Callable[[list[int]], Iterator[tuple[int, Callable]]],
+) -> Summary:
+    """What every executor does around its workers: pick the unfinished chunks, settle each one as
+    ``finished(todo)`` yields it (its index and a call that returns its result or raises), report
+    progress and summarise."""
+    start = time.perf_counter()
+    todo, skipped = _pending(run, plan, max_chunks)
+    report = Progress(plan, todo, enabled=progress)
+    ran, failed = [], []
+    for chunk, fetch in finished(todo):
+        ok = _settle(run, plan, chunk, fetch, save_params)
+        (ran if ok else failed).append(chunk)
+        report(chunk, ok)
+    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
+    return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+
 def run_local(
     run: RunDir,
     plan: Plan,
@@ -98,18 +121,12 @@ def run_local(
     chunk_runner: Callable = run_chunk,
 ) -> Summary:
     """Run the unfinished chunks in this process, in plan order."""
-    start = time.perf_counter()
-    todo, skipped = _pending(run, plan, max_chunks)
-    report = Progress(plan, todo, enabled=progress)
-    ran, failed = [], []
-    for chunk in todo:
-        ok = _settle(
-            run, plan, chunk, functools.partial(chunk_runner, plan, plan.chunks[chunk]), save_params
-        )
-        (ran if ok else failed).append(chunk)
-        report(chunk, ok)
-    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
-    return Summary(ran, skipped, failed, remaining, time.perf_counter() - start)
+
+    def finished(todo: list[int]):
+        for chunk in todo:
+            yield chunk, functools.partial(chunk_runner, plan, plan.chunks[chunk])
+
+    return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
 def _cores() -> int:
@@ -134,24 +151,17 @@ def run_processes(
     the order they finish. Workers are spawned, so a script that calls this needs the usual
     ``if __name__ == "__main__":`` guard.
     """
-    start = time.perf_counter()
-    todo, skipped = _pending(run, plan, max_chunks)
-    report = Progress(plan, todo, enabled=progress)
-    workers = max(1, min(workers or _cores(), len(todo)))
     spec_data = spec_to_dict(plan.spec)
-    ran, failed = [], []
-    context = multiprocessing.get_context(
-        "spawn"
-    )  # a fresh JAX in each worker, never a fork of one
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-        pending = {pool.submit(_remote_chunk, spec_data, chunk): chunk for chunk in todo}
-        for future in concurrent.futures.as_completed(pending):
-            chunk = pending[future]
-            ok = _settle(run, plan, chunk, future.result, save_params)
-            (ran if ok else failed).append(chunk)
-            report(chunk, ok)
-    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
-    return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+    def finished(todo: list[int]):
+        count = max(1, min(workers or _cores(), len(todo)))
+        context = multiprocessing.get_context("spawn")  # a fresh JAX in each worker, never a fork
+        with concurrent.futures.ProcessPoolExecutor(count, mp_context=context) as pool:
+            pending = {pool.submit(_remote_chunk, spec_data, chunk): chunk for chunk in todo}
+            for future in concurrent.futures.as_completed(pending):
+                yield pending[future], future.result
+
+    return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
 def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
@@ -201,23 +211,18 @@ def run_ray(
     """Spread the unfinished chunks over a Ray cluster; results are written here as they arrive."""
     import ray
 
-    start = time.perf_counter()
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, log_to_driver=False)
-    todo, skipped = _pending(run, plan, max_chunks)
-    report = Progress(plan, todo, enabled=progress)
     remote = ray.remote(num_cpus=cpus_per_chunk, max_retries=0)(_remote_chunk)
     spec_data = spec_to_dict(plan.spec)
-    pending = {remote.remote(spec_data, chunk): chunk for chunk in todo}
-    ran, failed = [], []
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        chunk = pending.pop(done[0])
-        ok = _settle(run, plan, chunk, functools.partial(ray.get, done[0]), save_params)
-        (ran if ok else failed).append(chunk)
-        report(chunk, ok)
-    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
-    return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)
+
+    def finished(todo: list[int]):
+        pending = {remote.remote(spec_data, chunk): chunk for chunk in todo}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            yield pending.pop(done[0]), functools.partial(ray.get, done[0])
+
+    return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
 def run_chunks(
