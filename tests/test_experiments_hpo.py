@@ -109,3 +109,46 @@ def test_pb2_changes_hyperparameters_between_rounds(pb2_runs):
             others = before.drop(index=member)
             assert before.loc[member, "episode_return"] <= others["episode_return"].max()
     assert changes >= 1
+
+
+REPLAY = {"batch_size": 8, "log_every": 32, "buffer_size": 256, "learning_starts": 32}
+HOST_CONTINUATION = [
+    (
+        "ppo",
+        "CartPole",
+        {"learning_rate": 1e-30, "total_timesteps": 64, "num_steps": 32, "num_envs": 2},
+    ),
+    ("dqn", "CartPole", {**REPLAY, "learning_rate": 1e-30, "total_timesteps": 96}),
+    ("sac", "Pendulum", {**REPLAY, "policy_lr": 1e-30, "q_lr": 1e-30, "total_timesteps": 96}),
+]
+
+
+@pytest.mark.parametrize(("agent", "env_name", "options"), HOST_CONTINUATION)
+def test_host_training_continues_the_given_parameters(agent, env_name, options):
+    """What PB2 needs on a host environment: a round starts from the member's parameters (with a
+    vanishing step size they come back unchanged), not from fresh ones, and reproducibly."""
+    import jax
+
+    import contextrl as crl
+    from contextrl.agents import get_agent
+
+    entry = get_agent(agent)
+    env = crl.make(env_name)
+    contexts = env.default_context()
+    config = entry.config(env_name, {"hidden_sizes": [8], **options})
+    given = entry.init_params(config, env, contexts, jax.random.key(5))
+
+    def train(params):
+        key = jax.random.key(0)
+        return entry.train_host(config, env_name, contexts, key, seed=1, init_params=params)
+
+    continued, again, fresh = train(given), train(given), train(None)
+    pairs = zip(*(jax.tree_util.tree_leaves(r) for r in (given, continued.params)), strict=True)
+    for before, after in pairs:
+        np.testing.assert_allclose(np.asarray(after), np.asarray(before), rtol=0, atol=1e-20)
+    for a, b in zip(
+        *(jax.tree_util.tree_leaves(r.params) for r in (continued, again)), strict=True
+    ):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    leaves = (jax.tree_util.tree_leaves(r) for r in (fresh.params, given))
+    assert not all(np.allclose(a, b) for a, b in zip(*leaves, strict=True))

@@ -451,6 +451,7 @@ def train_gymnasium(
     *,
     seed: int = 0,
     vectorization: str = "sync",
+    init_params: Any = None,
     **env_kwargs: Any,
 ) -> TrainResult:
     """DQN/C51 on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
@@ -469,6 +470,7 @@ def train_gymnasium(
         ),
         seed=seed,
         vectorization=vectorization,
+        init_params=init_params,
         **env_kwargs,
     )
 
@@ -488,7 +490,7 @@ def make_host_policy(config: DQNConfig, action_space, obs_space, context) -> Cal
 class _HostLearner(HostLearner):
     """DQN/C51's part of the host loop: ε-greedy (or Boltzmann) acting, replay, gradient steps."""
 
-    def __init__(self, config: DQNConfig, collector, key):
+    def __init__(self, config: DQNConfig, collector, key, init_params=None):
         nets = _build_networks(
             config,
             "the environment",
@@ -497,7 +499,7 @@ class _HostLearner(HostLearner):
         optimizer, act, learn, self._epsilon_at = _learner(config, nets)
         self._num_actions, self._num_envs = nets.num_actions, config.num_envs
         key, init_key = jax.random.split(key)
-        self.params = nets.q.init(init_key)
+        self.params = nets.q.init(init_key) if init_params is None else init_params
         self._target_params, self._opt_state = self.params, optimizer.init(self.params)
         example = HostStep.example(collector, np.zeros((self._num_envs,), np.int32))
         capacity = max(config.buffer_size // self._num_envs, config.n_step + 1)

@@ -247,6 +247,7 @@ class HostSchedule:
 
 class HostLearner(abc.ABC):
     """An agent's part of host training; :func:`train_on_host` steps the environment around it.
+    It is made by ``(config, collector, key, init_params)``: ``init_params`` None for fresh parameters.
 
     Per vector step the loop calls ``act`` for the collector's current observation and context input,
     steps every copy with the returned environment actions, and hands the step to ``store``; after
@@ -281,16 +282,19 @@ def train_on_host(
     env_id: str,
     train_contexts: Any,
     key,
-    make_learner: Callable[[Any, HostCollector, Any], HostLearner],
+    make_learner: Callable[[Any, HostCollector, Any, Any], HostLearner],
     schedule: HostSchedule,
     *,
     seed: int = 0,
     vectorization: str = "sync",
+    init_params: Any = None,
     **env_kwargs: Any,
 ) -> TrainResult:
-    """Train ``make_learner(config, collector, key)`` by ``schedule`` on ``config.num_envs`` copies of
-    ``env_id`` (contexts from ``train_contexts`` by ``config.context_selector``): the host training
-    loop of every agent.
+    """Train ``make_learner(config, collector, key, init_params)`` by ``schedule`` on
+    ``config.num_envs`` copies of ``env_id`` (contexts from ``train_contexts`` by
+    ``config.context_selector``): the host training loop of every agent. ``init_params`` continues
+    training given parameters (population-based tuning) with a fresh optimiser, replay and warm-up,
+    as the JAX path does; None starts from fresh ones.
     Returns the ``TrainResult`` of the agent's JAX path: one metrics row per period (``step``,
     ``episode_return``, ``episode_length``, ``episodes_finished`` and the learner's columns) and the
     most recent ``config.episode_log_size`` episodes."""
@@ -307,7 +311,7 @@ def train_on_host(
         vectorization=vectorization,
         **env_kwargs,
     ) as collector:
-        learner = make_learner(config, collector, key)
+        learner = make_learner(config, collector, key, init_params)
 
         def vector_step(warmup: bool) -> None:
             obs, context = collector.obs, collector.context

@@ -383,6 +383,7 @@ def train_gymnasium(
     *,
     seed: int = 0,
     vectorization: str = "sync",
+    init_params: Any = None,
     **env_kwargs: Any,
 ) -> TrainResult:
     """PPO on the host collector (:func:`contextrl.agents.host.train_on_host`): for host environments
@@ -402,6 +403,7 @@ def train_gymnasium(
         HostSchedule(0, config.num_updates, 1, config.num_steps),
         seed=seed,
         vectorization=vectorization,
+        init_params=init_params,
         **env_kwargs,
     )
 
@@ -441,7 +443,7 @@ def make_host_policy(config: PPOConfig, action_space, obs_space, context) -> Cal
 class _HostLearner(HostLearner):
     """PPO's part of the host loop: sampling with values, the rollout, the clipped update."""
 
-    def __init__(self, config: PPOConfig, collector, key):
+    def __init__(self, config: PPOConfig, collector, key, init_params=None):
         nets = _host_networks(
             config,
             *collector.agent_inputs,
@@ -456,7 +458,8 @@ class _HostLearner(HostLearner):
         self._act, self._value, self._learn = act, jax.jit(value), jax.jit(learn)
         self._gamma = config.gamma
         self._key, init_key = jax.random.split(key)
-        self.params = _init_params(nets, config, init_key)
+        fresh = init_params is None
+        self.params = _init_params(nets, config, init_key) if fresh else init_params
         self._opt_state = optimizer.init(self.params)
         self._rollout: list = []
 

@@ -10,7 +10,8 @@ env, train_contexts) -> train(key, contexts)`` and ``make_policy(config, env, tr
 policy(params, obs, ctx, key)``. ``defaults(env_name)`` gives per-environment settings (the paper's)
 that the user's options override. An agent without ``make_train`` is not trained (the random baseline).
 For host environments (dm_control, Box2D…) an agent adds ``train_host(config, env_id, train_contexts,
-key, seed=..., **env_kwargs)`` on the shared host collector and ``make_host_policy(config,
+key, seed=..., init_params=None, **env_kwargs)`` on the shared host collector (``init_params``:
+parameters to continue training, for population-based tuning) and ``make_host_policy(config,
 action_space, observation_space, context_input) -> act(params, obs, context_input, key)``.
 ``init_params(config, env, train_contexts, key)`` (optional) gives fresh parameters, so population-based
 tuning (the hpo protocol) compiles one training function that always continues given parameters.

@@ -445,6 +445,7 @@ def train_gymnasium(
     *,
     seed: int = 0,
     vectorization: str = "sync",
+    init_params: Any = None,
     **env_kwargs: Any,
 ) -> TrainResult:
     """SAC on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
@@ -463,6 +464,7 @@ def train_gymnasium(
         ),
         seed=seed,
         vectorization=vectorization,
+        init_params=init_params,
         **env_kwargs,
     )
 
@@ -476,7 +478,7 @@ class _HostLearner(HostLearner):
     updated actor, the order of :func:`make_train`, so ``update`` has nothing left to do.
     """
 
-    def __init__(self, config: SACConfig, collector, key):
+    def __init__(self, config: SACConfig, collector, key, init_params=None):
         nets = _build_networks(
             config,
             collector.env_name,
@@ -490,9 +492,9 @@ class _HostLearner(HostLearner):
         capacity = max(config.buffer_size // num_envs, config.n_step + 1)
 
         @jax.jit
-        def start(key, example):
+        def start(key, example, init_params):
             key, init_key = jax.random.split(key)
-            params, target_critic, opt_states = init(init_key)
+            params, target_critic, opt_states = init(init_key, init_params)
             state = {
                 "params": params,
                 "target_critic": target_critic,
@@ -535,7 +537,7 @@ class _HostLearner(HostLearner):
             }
             return state, action, losses
 
-        self._state, self._replay = start(key, example)
+        self._state, self._replay = start(key, example, init_params)
         self._first_action, self._add, self._learn_and_act = first_action, add, learn_and_act
         self._rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
         self._next_action = None

@@ -4,7 +4,8 @@ bandits (PB2, Parker-Holder et al. 2020) on Ray Tune, as the paper tunes its age
 A population of agents trains on contexts drawn from ``train``; every round (``steps_per_round``
 environment steps) each member reports its mean return on the training contexts, and PB2 replaces the
 worst members by copies of the best with hyper-parameters chosen by a time-varying GP bandit within
-``search`` bounds. Members continue training their parameters (with a fresh optimiser) across rounds.
+``search`` bounds. Members continue training their parameters (with a fresh optimiser) across rounds,
+compiled on a JAX environment and through the shared host collector on a host one.
 The run keeps each member's hyper-parameter schedule, writes ``best.yaml`` (the best member's final
 agent options, for ``contextrl run ... --agent-config best.yaml``) and evaluates the best member on the
 test contexts. Ray runs locally by default, or on a cluster (``--address``).
@@ -77,10 +78,8 @@ class HPOSpec(CommonSpec):
             )
         if self.population < 2:
             raise SpecError(f"population: PB2 needs at least 2 members, got {self.population}")
-        if self.host or not self.agent_entry().trained:
-            raise SpecError(
-                f"hpo tunes a trained agent on a JAX environment; got agent {self.agent} on {self.env}"
-            )
+        if not self.agent_entry().trained:
+            raise SpecError(f"hpo tunes a trained agent; {self.agent} does not learn")
         self.resolve_features("train", self.train)
         if self.test is not None:
             self.resolve_features("test", self.test)
@@ -172,7 +171,7 @@ def _trainable(config: dict) -> None:
     """
     from ray import tune
 
-    from contextrl.agents import evaluate, load_checkpoint, save_checkpoint
+    from contextrl.agents import load_checkpoint, save_checkpoint
     from contextrl.experiments.spec import parse_spec
 
     if not jax.config.jax_compilation_cache_dir:
@@ -184,10 +183,8 @@ def _trainable(config: dict) -> None:
     agent = spec.agent_entry()
     hyper = {name: config[name] for name in spec.bounds()}
     agent_config = spec._config(hyper)
-    make_train = agent.make_train(agent_config, env, train_set)
-    train = jax.jit(lambda key, params: make_train(key, None, params).params)
-    policy = agent.make_policy(agent_config, env, train_set)
-    score = jax.jit(lambda p, k: evaluate(policy, p, env, train_set, spec.eval_episodes, k).mean())
+    train = _round_trainer(spec, env, agent_config, train_set)
+    returns = _evaluator(spec, env, agent_config, train_set)
     init_key, key = jax.random.split(
         jax.random.fold_in(jax.random.key(spec.seed), config["member"])
     )
@@ -197,14 +194,14 @@ def _trainable(config: dict) -> None:
         with checkpoint.as_directory() as folder:
             params = load_checkpoint(Path(folder) / "params.npz")
             round_index = int((Path(folder) / "round").read_text())
-    elif agent.init_params is not None:  # else the first round compiles its own initialisation
+    elif agent.init_params is not None and not spec.host:  # else the first round initialises
         params = agent.init_params(agent_config, env, train_set, init_key)
     while True:
         round_key = jax.random.fold_in(key, round_index)
         train_key, eval_key = jax.random.split(round_key)
         params = train(train_key, params)
         round_index += 1
-        mean_return = float(score(params, eval_key))
+        mean_return = float(returns(params, train_set, eval_key).mean())
         with tempfile.TemporaryDirectory() as folder:
             save_checkpoint(Path(folder) / "params.npz", params)
             (Path(folder) / "round").write_text(str(round_index))
@@ -216,6 +213,58 @@ def _trainable(config: dict) -> None:
                 },
                 checkpoint=tune.Checkpoint.from_directory(folder),
             )
+
+
+def _round_trainer(spec: HPOSpec, env, config, train_set):
+    """``train(key, params) -> params``: one round of training that continues ``params`` (None: fresh
+    ones), compiled on a JAX environment, on the shared host collector otherwise."""
+    agent = spec.agent_entry()
+    if not spec.host:
+        make_train = agent.make_train(config, env, train_set)
+        return jax.jit(lambda key, params: make_train(key, None, params).params)
+    from contextrl.experiments.trials import host_context_input
+
+    context = host_context_input(spec, spec.variants[0], env, train_set)
+    limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
+
+    def train(key, params):
+        seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
+        result = agent.train_host(
+            config,
+            spec.env,
+            train_set,
+            key,
+            seed=seed,
+            init_params=params,
+            context=context,
+            **limit,
+        )
+        return result.params
+
+    return train
+
+
+def _evaluator(spec: HPOSpec, env, config, train_set, agent: str | None = None):
+    """``returns(params, contexts, key) -> mean return per context`` of ``agent`` (default: the
+    spec's) trained on ``train_set``: compiled on a JAX environment, in host copies otherwise."""
+    from contextrl.agents import evaluate, get_agent
+    from contextrl.agents.networks import ContextInput
+
+    entry = get_agent(agent or spec.agent)
+    if not spec.host:
+        policy = entry.make_policy(config, env, train_set)
+        run = jax.jit(lambda p, c, k: evaluate(policy, p, env, c, spec.eval_episodes, k))
+        return lambda params, contexts, key: np.asarray(run(params, contexts, key))
+    from contextrl.experiments.trials import host_context_input, host_returns
+
+    context = host_context_input(spec, spec.variants[0], env, train_set)
+    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
+    act = entry.make_host_policy(config, *spaces, context if entry.trained else ContextInput())
+
+    def returns(params, contexts, key):
+        return host_returns(spec, context, act, params, contexts, spec.eval_episodes, key)
+
+    return returns
 
 
 @contextlib.contextmanager
@@ -339,19 +388,17 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
 
 def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The best member on the test contexts, and on its training contexts next to a random policy."""
-    from contextrl.agents import evaluate, get_agent
-
     env = spec.make_env()
     train, test = plan.sets["train"].contexts, plan.sets["test"].contexts
     hyper = {name: best["config"][name] for name in spec.bounds()}
     config = spec._config(hyper)
-    policy = spec.agent_entry().make_policy(config, env, train)
-    random_policy = get_agent("random").make_policy(None, env, train)
+    returns_of = _evaluator(spec, env, config, train)
+    random_returns_of = _evaluator(spec, env, None, train, agent="random")
     key = jax.random.fold_in(jax.random.key(spec.seed), TEST_KEY)
-    returns = np.asarray(evaluate(policy, best["params"], env, test, spec.eval_episodes, key))
+    returns = returns_of(best["params"], test, key)
     own = jax.tree_util.tree_map(lambda leaf: leaf[:16], train)
-    trained = float(evaluate(policy, best["params"], env, own, spec.eval_episodes, key).mean())
-    random = float(evaluate(random_policy, None, env, own, spec.eval_episodes, key).mean())
+    trained = float(returns_of(best["params"], own, key).mean())
+    random = float(random_returns_of(None, own, key).mean())
     space = env.context_space
     evaluations = pd.DataFrame(
         {
