@@ -62,31 +62,37 @@ def random_rollout(reset, step, sample_action, params, steps: int, devices: int 
     return lambda key: compiled(jax.random.split(key, devices), shards)
 
 
-def batched_rollout(reset_batch, step_batch, num_actions: int, steps: int):
+def batched_rollout(reset_batch, step_batch, num_actions: int, steps: int, shards=None):
     """A compiled function key → checksum over whole batches: how a batched API is used.
 
     ``reset_batch(key) -> (state, obs)`` starts every copy; ``step_batch(key, state, actions) ->
     (state, obs)`` steps them all. Actions are uniform over ``num_actions``, one draw per step for the
     whole batch. Each library gets the per-copy keys it needs its own way (gymnax: a split per copy per
-    step; contextrl's ``step_copies``: from the state, none per step).
+    step; contextrl's ``step_copies``: from the state, none per step). With ``shards`` (a pytree with
+    one leading entry per CPU device) each device runs its own batch, one ``pmap``-compiled call, and
+    both functions take the device's shard as a last argument.
     """
 
-    def run(key):
+    def run(key, *shard):
         reset_key, key = jax.random.split(key)
-        state, obs = reset_batch(reset_key)
+        state, obs = reset_batch(reset_key, *shard)
         n = obs.shape[0]
 
         def body(carry, _):
             state, key, total = carry
             key, action_key, step_key = jax.random.split(key, 3)
             actions = jax.random.randint(action_key, (n,), 0, num_actions)
-            state, obs = step_batch(step_key, state, actions)
+            state, obs = step_batch(step_key, state, actions, *shard)
             return (state, key, total + jnp.sum(obs)), None
 
         (_, _, total), _ = jax.lax.scan(body, (state, key, jnp.zeros(())), None, steps)
         return total
 
-    return jax.jit(run)
+    if shards is None:
+        return jax.jit(run)
+    devices = jax.tree_util.tree_leaves(shards)[0].shape[0]
+    compiled = jax.pmap(run, devices=jax.devices()[:devices])
+    return lambda key: compiled(jax.random.split(key, devices), shards)
 
 
 def steps_per_second(run, n: int, steps: int, repeats: int = 3) -> tuple[float, float]:
