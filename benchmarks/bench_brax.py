@@ -11,22 +11,33 @@ context i of a batch drawn per copy, episodes end and restart (a new context cho
    (``brax.envs.create``: ``get_environment`` with brax's time limit and auto-reset) vmapped with one
    system for all copies. Both are compiled first, then timed in alternating calls, so the load of a
    shared machine falls on both alike.
-2. Steps/s of every environment at 1, 64, 256 and 1,024 copies (MJX), random actions, with the compile
+2. Steps/s of every environment at 1, 64, 256 and 1,024 copies (MJX), random actions, beside brax's own
+   environment with one shared system at the same size (MJX's solver runs until every copy of a batch
+   converges, so some tasks are slow on a CPU for brax too: the ratio tells ours from MJX), with the compile
    time (XLA's backend compilations, summed from ``jax.monitoring``) and a check that new context values
    never recompile: the compiled rollout takes the contexts as an argument and is called again with a
    second, independently drawn batch; the jitted function's cache and XLA's compilation count must not
    grow.
+
+Runs with XLA:CPU's concurrency-optimised scheduler off (``contextrl.xla_flags``): with it, Walker2d at
+1,024 copies never finishes on 2 cores, for brax's own environment as for ours (jaxlib 0.10.2 runs two
+batched LAPACK Cholesky factorisations of MJX's Newton solver at once; each splits its batch over the
+2-thread pool and waits for the other's thread).
 """
 
 import argparse
 import os
 import time
 
-import jax
-import jax.numpy as jnp
+from contextrl.xla_flags import xla_cpu_workaround
 
-import contextrl as crl
-from contextrl.envs import brax as family
+xla_cpu_workaround()  # before JAX creates its CPU backend
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+import contextrl as crl  # noqa: E402
+from contextrl.envs import brax as family  # noqa: E402
 
 SIZES = (1, 64, 256, 1024)
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
@@ -107,6 +118,16 @@ def seconds_of(run, key, argument) -> float:
     return time.perf_counter() - start
 
 
+def best_rates(sides, steps_per_call: int, rounds: int) -> list[float]:
+    """Steps/s of each compiled side, the best of ``rounds`` calls made in turn (side 1, side 2, …,
+    side 1, …), so a shared machine's load falls on every side alike."""
+    best = [float("inf")] * len(sides)
+    for i in range(rounds):
+        for side, (run, argument) in enumerate(sides):
+            best[side] = min(best[side], seconds_of(run, jax.random.key(i + 1), argument))
+    return [steps_per_call / s for s in best]
+
+
 def compare_with_brax(names, n: int, steps: int, rounds: int) -> None:
     print(
         f"\nPer-copy contexts vs brax's one shared system, {n} copies, {steps} steps per call, best of"
@@ -127,11 +148,7 @@ def compare_with_brax(names, n: int, steps: int, rounds: int) -> None:
         )
         for run, argument in sides[:2]:
             first_call(run, argument)
-        best = [float("inf")] * len(sides)
-        for i in range(rounds):
-            for side, (run, argument) in enumerate(sides):
-                best[side] = min(best[side], seconds_of(run, jax.random.key(i + 1), argument))
-        theirs, mine, default = (n * steps / s for s in best)
+        theirs, mine, default = best_rates(sides, n * steps, rounds)
         print(
             f"{name:>14} {theirs:>12.4g} {mine:>10.4g} {mine / theirs:>6.2f} {default:>14.4g}"
             f" {default / theirs:>6.2f}",
@@ -141,34 +158,36 @@ def compare_with_brax(names, n: int, steps: int, rounds: int) -> None:
 
 def steps_for(n: int, rate: float | None, seconds: float) -> int:
     """Steps per timed call: 20 at first, then about ``seconds`` at the rate of the previous size
-    (at least 5, at most 100): MJX tasks differ by 100x in speed on a CPU."""
+    (at least 2, at most 100): MJX tasks differ by 100x in speed on a CPU."""
     if rate is None:
         return 20
-    return int(max(5, min(100, rate * seconds / n)))
+    return int(max(2, min(100, rate * seconds / n)))
 
 
-def table(names, sizes, seconds: float) -> None:
+def table(names, sizes, seconds: float, rounds: int) -> None:
     print(
-        "\nEvery environment, each copy with its own context, through ContextualEnv.step_copies (MJX)"
+        "\nEvery environment, each copy with its own context, through ContextualEnv.step_copies (MJX),"
+        f" beside brax's own environment with one shared system (best of {rounds} alternating calls)"
     )
     print(
-        f"{'env':>24} {'copies':>7} {'steps':>6} {'compile s':>10} {'steps/s':>10}"
-        f" {'recompiles on new contexts':>27}"
+        f"{'env':>24} {'copies':>7} {'steps':>6} {'compile s':>10} {'steps/s':>10} {'brax':>10}"
+        f" {'ratio':>6} {'recompiles on new contexts':>27}"
     )
     for name in names:
         env = getattr(family, name)()
         rate = None
         for n in sizes:
             steps = steps_for(n, rate, seconds)
-            run = contextual_rollout(env, n, steps)
+            run, stock = contextual_rollout(env, n, steps), brax_rollout(env, n, steps)
             first, second = (per_copy_contexts(env, n, jax.random.key(k)) for k in (1, 2))
             compile_s = first_call(run, first)
+            first_call(stock, jnp.zeros(()))
             before = len(compilations)
-            best = min(seconds_of(run, jax.random.key(k), c) for k, c in ((1, second), (2, first)))
-            rate = n * steps / best
+            theirs, rate = best_rates(((stock, jnp.zeros(())), (run, second)), n * steps, rounds)
             recompiles = len(compilations) - before + run._cache_size() - 1
             print(
-                f"{name:>24} {n:>7} {steps:>6} {compile_s:>10.1f} {rate:>10.3g} {recompiles:>27}",
+                f"{name:>24} {n:>7} {steps:>6} {compile_s:>10.1f} {rate:>10.3g} {theirs:>10.3g}"
+                f" {rate / theirs:>6.2f} {recompiles:>27}",
                 flush=True,
             )
 
@@ -194,7 +213,7 @@ def main() -> None:
         compared = [n for n in ("Ant", "HalfCheetah") if n in names]
         compare_with_brax(compared, 256, args.compare_steps, args.rounds)
     if not args.skip_table:
-        table(names, [int(s) for s in args.sizes.split(",")], args.seconds)
+        table(names, [int(s) for s in args.sizes.split(",")], args.seconds, args.rounds)
     print(f"\nload average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 

@@ -203,3 +203,20 @@ def test_importing_contextrl_changes_no_process_setting():
         [sys.executable, "-c", script], env=environment, capture_output=True, text=True
     )
     assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_xla_flags_set_after_importing_contextrl_still_take_effect(tmp_path):
+    """Importing contextrl starts no JAX backend, so the CLI's XLA:CPU workaround (set after the
+    import) reaches XLA: here a flag set after the import makes XLA dump the next compiled program."""
+    script = (
+        "import os, jax, jax.numpy as jnp\n"
+        "import contextrl, contextrl.cli, contextrl.experiments.runner, contextrl.envs.platformer\n"
+        f"os.environ['XLA_FLAGS'] = '--xla_dump_to={tmp_path}'\n"
+        "jax.jit(lambda x: 3 * x + 1)(jnp.ones(3)).block_until_ready()\n"
+    )
+    environment = {"PATH": "/usr/bin:/bin", "MPLBACKEND": "svg", "PYTHONPATH": ":".join(sys.path)}
+    result = subprocess.run(
+        [sys.executable, "-c", script], env=environment, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert list(tmp_path.iterdir()), "XLA read its flags before contextrl's import returned"

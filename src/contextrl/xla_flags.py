@@ -12,8 +12,9 @@ import os
 def xla_cpu_workaround() -> None:
     """Turn off XLA:CPU's concurrency-optimised scheduler unless XLA_FLAGS already decides.
 
-    With it, large vmapped training programs (e.g. 128 PPO agents in one call, jaxlib 0.10) can wedge
-    forever: every pool thread idle, the executable never completing. Takes effect only if called before
+    With it, large vmapped programs can wedge forever on jaxlib 0.10, every pool thread idle: 128 PPO
+    agents in one call, or Brax's Walker2d at 1,024 copies on 2 cores (brax's own environment too: two
+    batched LAPACK Cholesky factorisations run at once, each waiting for pool threads the other holds). Takes effect only if called before
     JAX creates its CPU backend: the CLI's ``main``, the experiment runner and its Ray workers call it.
     """
     flags = os.environ.get("XLA_FLAGS", "")

@@ -194,7 +194,10 @@ def context_type(cls):
     )
     rules = tuple(getattr(cls, "coherence", ()))
     data_cls.space = ContextSpace(data_cls, tuple(features), rules)
-    data_cls.space.check_coherence(data_cls.space.default())  # a declaration bug, caught at import
+    # A declaration bug, caught at import; numpy values, so that importing contextrl starts no JAX
+    # backend and XLA_FLAGS set afterwards (contextrl.xla_flags) still take effect.
+    defaults = data_cls(**{f.name: np.asarray(f.default, f.dtype) for f in features})
+    data_cls.space.check_coherence(defaults)
     return data_cls
 
 
