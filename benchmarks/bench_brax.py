@@ -29,15 +29,12 @@ import argparse
 import os
 import time
 
+import jax
+import jax.numpy as jnp
+
+import contextrl as crl
+from contextrl.envs import brax as family
 from contextrl.xla_flags import xla_cpu_workaround
-
-xla_cpu_workaround()  # before JAX creates its CPU backend
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-
-import contextrl as crl  # noqa: E402
-from contextrl.envs import brax as family  # noqa: E402
 
 SIZES = (1, 64, 256, 1024)
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
@@ -193,6 +190,7 @@ def table(names, sizes, seconds: float, rounds: int) -> None:
 
 
 def main() -> None:
+    xla_cpu_workaround()  # before the first JAX computation starts XLA's CPU backend
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", default=",".join(c.__name__ for c in family.ENVIRONMENTS))
     parser.add_argument("--sizes", default=",".join(map(str, SIZES)))
