@@ -189,6 +189,15 @@ def test_vector_reset_options_set_contexts_per_copy():
         envs.reset(options={"context_id": "middle"})
 
 
+def run_in_fresh_python(script: str) -> None:
+    """Runs ``script`` in a new interpreter with a bare environment; fails the test if it fails."""
+    environment = {"PATH": "/usr/bin:/bin", "MPLBACKEND": "svg", "PYTHONPATH": ":".join(sys.path)}
+    result = subprocess.run(
+        [sys.executable, "-c", script], env=environment, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
 def test_importing_contextrl_changes_no_process_setting():
     script = (
         "import os, sys, matplotlib; before = dict(os.environ); backend = matplotlib.get_backend()\n"
@@ -198,11 +207,7 @@ def test_importing_contextrl_changes_no_process_setting():
         "assert not ours and not changed, (ours, changed)\n"
         "assert matplotlib.get_backend() == backend, matplotlib.get_backend()\n"
     )
-    environment = {"PATH": "/usr/bin:/bin", "MPLBACKEND": "svg", "PYTHONPATH": ":".join(sys.path)}
-    result = subprocess.run(
-        [sys.executable, "-c", script], env=environment, capture_output=True, text=True
-    )
-    assert result.returncode == 0, result.stderr[-2000:]
+    run_in_fresh_python(script)
 
 
 def test_xla_flags_set_after_importing_contextrl_still_take_effect(tmp_path):
@@ -214,9 +219,5 @@ def test_xla_flags_set_after_importing_contextrl_still_take_effect(tmp_path):
         f"os.environ['XLA_FLAGS'] = '--xla_dump_to={tmp_path}'\n"
         "jax.jit(lambda x: 3 * x + 1)(jnp.ones(3)).block_until_ready()\n"
     )
-    environment = {"PATH": "/usr/bin:/bin", "MPLBACKEND": "svg", "PYTHONPATH": ":".join(sys.path)}
-    result = subprocess.run(
-        [sys.executable, "-c", script], env=environment, capture_output=True, text=True
-    )
-    assert result.returncode == 0, result.stderr[-2000:]
+    run_in_fresh_python(script)
     assert list(tmp_path.iterdir()), "XLA read its flags before contextrl's import returned"

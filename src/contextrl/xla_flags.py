@@ -14,8 +14,9 @@ def xla_cpu_workaround() -> None:
 
     With it, large vmapped programs can wedge forever on jaxlib 0.10, every pool thread idle: 128 PPO
     agents in one call, or Brax's Walker2d at 1,024 copies on 2 cores (brax's own environment too: two
-    batched LAPACK Cholesky factorisations run at once, each waiting for pool threads the other holds). Takes effect only if called before
-    JAX creates its CPU backend: the CLI's ``main``, the experiment runner and its Ray workers call it.
+    batched LAPACK Cholesky factorisations run at once, each waiting for pool threads the other
+    holds). Takes effect only if called before JAX creates its CPU backend (importing contextrl does
+    not create it): the CLI's ``main``, the experiment runner and its Ray workers call it.
     """
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_cpu_enable_concurrency_optimized_scheduler" not in flags:
