@@ -34,7 +34,7 @@ system-deps:
 	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing
 
 test: system-deps install
-	$(PY) -m pytest -q -n 2 --dist loadfile
+	$(PY) -m pytest -q -n 2 --dist loadgroup --durations=25
 
 run: install
 	$(VENV)/bin/contextrl run quickstart

@@ -1,13 +1,8 @@
-"""The test session sets the XLA:CPU flag a user of large vmapped training sets (see README); test
-files that start a local Ray stop it when they end."""
+"""Test files that start a local Ray stop it when they end (process-wide settings: ../conftest.py)."""
 
 import sys
 
 import pytest
-
-from contextrl.xla_flags import xla_cpu_workaround
-
-xla_cpu_workaround()  # before any test starts JAX's CPU backend
 
 
 @pytest.fixture(scope="module")

@@ -1,13 +1,14 @@
-"""SAC: it learns Pendulum for every seed run, vmapped seeds equal single runs, the context reaches
+"""SAC: it learns Pendulum, vmapped seeds equal single runs, the context reaches
 the policy, bad configs fail before compilation."""
 
 import jax
 import jax.numpy as jnp
+import learning  # tests/learning.py: the runs the learning tests share with their margin script
 import numpy as np
 import pytest
 
 import contextrl as crl
-from contextrl.agents import ConfigError, evaluate, sac
+from contextrl.agents import ConfigError, sac
 
 
 @pytest.fixture(scope="module")
@@ -15,29 +16,21 @@ def pendulum():
     return crl.make("Pendulum")
 
 
-def test_sac_learns_pendulum_for_every_seed(pendulum):
-    """Budget: 16k steps (2 envs, 1k warm-up transitions, 7.5k actor and critic updates, 64×64
-    MLPs), 2 seeds in one vmapped call. Every seed's deterministic policy averages >= −250 over 10
-    episodes at the default context.
+def test_sac_learns_pendulum():
+    """SAC, 16k steps (2 copies, 1k warm-up transitions, 7.5k actor and critic updates, 64×64 MLPs),
+    seeds 0–3 in one vmapped call, the deterministic policy's mean return over 10 episodes.
+
+    Measured (tests/learning_margins.py): default numerics, seeds 0–15: min −553, median −162, max
+    −120 (two seeds below −250); fast math, seeds 100–107: min −189, median −140. So "every seed
+    >= −250" fails by luck. What holds with a margin: every seed >= −700 (the first episodes score
+    −1,414 to −1,662) and the median of the four >= −300 (the worst four measured give −227). The
+    final temperature measured 0.095–0.163.
     """
-    config = sac.SACConfig(
-        total_timesteps=16_000,
-        num_envs=2,
-        hidden_sizes=(64, 64),
-        learning_starts=1000,
-        policy_frequency=1,
-    )
-    context = pendulum.default_context()
-    train = sac.make_train(config, pendulum, context)
-    result = jax.jit(jax.vmap(train))(jax.random.split(jax.random.key(0), 2))
-    policy = sac.make_policy(config, pendulum, context)
-    returns = jax.jit(
-        jax.vmap(lambda params, key: evaluate(policy, params, pendulum, context, 10, key))
-    )(result.params, jax.random.split(jax.random.key(1), 2))
-    assert np.all(np.asarray(returns) >= -250), returns
-    curve = np.asarray(result.metrics["episode_return"])
-    assert np.all(np.nanmean(curve[:, :2], axis=1) < -700)  # it starts far from the goal
-    assert np.all(np.asarray(result.metrics["alpha"])[:, -1] < 0.2)  # the temperature was tuned
+    statistics = learning.sac_pendulum(range(4))
+    returns = statistics["return"]
+    assert np.all(returns >= -700) and np.median(returns) >= -300, returns
+    assert np.all(statistics["first_rows"] < -700), statistics["first_rows"]  # far from the goal
+    assert np.all(statistics["final_alpha"] < 0.2), statistics["final_alpha"]  # temperature tuned
 
 
 def test_vmapped_seeds_equal_single_runs(pendulum):

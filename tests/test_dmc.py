@@ -402,6 +402,7 @@ def test_bad_input_is_refused_clearly_and_leaves_the_environment_usable(built):
         ("DmcPointMass", {"area_size": 1.2, "target_x": 0.4}),
     ],
 )
+@pytest.mark.egl
 def test_rendering_is_headless_and_shows_the_geometry(name, changed):
     env = ENVS[name](render_size=(48, 64))
     env.reset_physics(env.default_context(), np.random.default_rng(0))

@@ -27,6 +27,7 @@ def episode(env, seed: int, steps: int) -> tuple[np.ndarray, list]:
     return rows, contexts
 
 
+@pytest.mark.egl
 def test_walker_through_gymnasium_with_visible_viscosity_and_a_time_limit_truncation():
     env = gymnasium.make(
         "contextrl/CARLDmcWalkerEnv-v0",
@@ -81,6 +82,7 @@ def test_vector_env_with_two_worker_processes_gives_each_copy_its_context():
     "name", ["DmcWalker", "DmcQuadruped", "DmcFish", "DmcFinger", "DmcPointMass"]
 )
 @pytest.mark.filterwarnings("ignore::UserWarning")  # unbounded observations, asymmetric actions
+@pytest.mark.egl
 def test_gymnasium_check_env_passes_with_resampled_visible_contexts(name):
     from gymnasium.utils.env_checker import check_env
 

@@ -12,7 +12,8 @@ from contextrl.experiments.commands import main as commands_main
 BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
 
 
-pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
+# One worker runs the whole file: its PB2 runs (a module fixture) are the suite's costliest setup.
+pytestmark = [pytest.mark.usefixtures("shut_down_ray"), pytest.mark.xdist_group("hpo")]
 
 
 def test_hpo_search_bounds_are_checked_before_anything_runs():

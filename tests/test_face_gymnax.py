@@ -1,18 +1,13 @@
 """The gymnax face: gymnax's calls and conventions over the core, params as contexts, PPO learning."""
 
-import sys
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
+import learning  # tests/learning.py: the runs the learning tests share with their margin script
 import numpy as np
 import pytest
 
 import contextrl as crl
 import contextrl.gymnax as gymnax
-
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
 
 # Of Brax, whose MJX programs take minutes to compile on a CPU, the cheapest task: its ten envs share
 # one base, so the face's calls are the same for all of them.
@@ -29,10 +24,10 @@ def test_every_jax_env_has_the_gymnax_calls(env_id):
     core = crl.make(env_id)
     assert params == core.default_context()
     key = jax.random.key(0)
-    obs, state = env.reset(key, params)
+    obs, state = jax.jit(env.reset)(key, params)  # compiled, as gymnax's users call it
     assert obs.shape == env.observation_space(params).shape
     action = env.action_space(params).sample(jax.random.key(1))
-    obs, state, reward, done, info = env.step(jax.random.key(2), state, action, params)
+    obs, state, reward, done, info = jax.jit(env.step)(jax.random.key(2), state, action, params)
     core_state, _ = jax.jit(core.reset)(key, params)
     _, timestep = jax.jit(core.step)(jax.random.key(2), core_state, action, params)
     np.testing.assert_array_equal(obs, timestep.obs)  # the face is the core's step
@@ -100,12 +95,15 @@ def test_params_are_contexts_and_vmap_gives_each_copy_its_own():
 
 
 def test_purejaxrl_style_ppo_learns_contextual_cartpole():
-    sys.path.insert(0, str(EXAMPLES))
-    try:
-        from purejaxrl_ppo_cartpole import CONFIG, make_train, returns_per_update
-    finally:
-        sys.path.remove(str(EXAMPLES))
-    out = jax.jit(make_train(CONFIG))(jax.random.key(42))
-    returns = np.asarray(returns_per_update(out["metrics"]))
-    first, last = np.nanmean(returns[:5]), np.nanmean(returns[-len(returns) // 10 :])
-    assert first < 60 and last > 300, (first, last)
+    """examples/purejaxrl_ppo_cartpole.py unchanged (100k steps, a pole length per copy), seeds 0–3 in
+    one vmapped call: the mean return of the first 5 updates and of the last 10 %.
+
+    Measured (tests/learning_margins.py), the last updates' mean return: default numerics, seeds
+    0–15: min 260, median 488; fast math, seeds 100–107: min 410, median 469. The first updates:
+    31–42. Every seed >= 150 and the median of the four >= 350 hold with a margin (the worst four
+    measured give 404).
+    """
+    statistics = learning.purejaxrl_cartpole(range(4))
+    first, last = statistics["first_updates"], statistics["last_updates"]
+    assert np.all(first < 60), first
+    assert np.all(last >= 150) and np.median(last) >= 350, last

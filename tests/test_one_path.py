@@ -52,7 +52,8 @@ def core_run(env, contexts, selector, seed, copies, actions):
     """(obs, reward, terminated, truncated, context id) per step through ``jax.vmap`` by hand."""
     cenv = crl.with_contexts(env, contexts, selector)
     key = jax.random.wrap_key_data(jnp.asarray(run_key_bits(seeding.np_random(seed)[0])))
-    state, ts = jax.vmap(cenv.reset, in_axes=(None, 0, None))(key, jnp.arange(copies), copies)
+    reset = jax.jit(jax.vmap(cenv.reset, in_axes=(None, 0, None)), static_argnums=2)
+    state, ts = reset(key, jnp.arange(copies), copies)
     step = jax.jit(jax.vmap(cenv.step))
     rows = [(ts.obs, None, None, None, state.context_id)]
     for action in actions:

@@ -1,0 +1,56 @@
+"""Measure the learning tests' statistics over many seeds, to set thresholds that luck cannot cross.
+
+Run each numerics in its own process (XLA reads its flags once, when JAX starts):
+
+    python tests/learning_margins.py --seeds 16                # XLA's default numerics
+    XLA_FLAGS=--xla_cpu_enable_fast_math=true python tests/learning_margins.py --seeds 16
+
+It prints, per case and statistic, the sorted per-seed values, their minimum, median and maximum;
+the tests' docstrings quote these figures. ``--first`` moves the seed range (seeds first .. first+n-1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from contextrl.xla_flags import xla_cpu_workaround  # noqa: E402
+
+xla_cpu_workaround()  # as the test session does, before JAX starts
+
+import learning  # noqa: E402
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("cases", nargs="*", default=list(learning.CASES), help="default: all")
+    parser.add_argument("--seeds", type=int, default=16)
+    parser.add_argument("--first", type=int, default=0)
+    args = parser.parse_args(argv)
+    unknown = sorted(set(args.cases) - set(learning.CASES))
+    if unknown:
+        parser.error(f"unknown cases {unknown}; choose from {sorted(learning.CASES)}")
+    seeds = np.arange(args.first, args.first + args.seeds)
+    print(f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}; seeds {seeds[0]}..{seeds[-1]}")
+    for name in args.cases:
+        start = time.perf_counter()
+        statistics = learning.CASES[name](seeds)
+        print(f"\n{name} ({time.perf_counter() - start:.0f} s)")
+        for stat, values in statistics.items():
+            values = np.asarray(values, float)
+            print(
+                f"  {stat}: min {values.min():.4g}  median {np.median(values):.4g}  "
+                f"max {values.max():.4g}  sorted {np.round(np.sort(values), 3).tolist()}"
+            )
+        sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
