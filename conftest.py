@@ -3,6 +3,7 @@ Python blocks collected as tests by Sybil (a stale snippet fails the suite), and
 MuJoCo's headless rendering tests skip, saying why, where EGL is missing."""
 
 import ctypes.util
+import doctest
 import os
 from pathlib import Path
 
@@ -48,7 +49,7 @@ def readme_folder(tmp_path_factory):
 
 
 pytest_collect_file = Sybil(
-    parsers=[PythonCodeBlockParser(), SkipParser()],
+    parsers=[PythonCodeBlockParser(doctest_optionflags=doctest.NORMALIZE_WHITESPACE), SkipParser()],
     patterns=["README.md"],
     fixtures=["readme_folder"],
 ).pytest()

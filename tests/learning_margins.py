@@ -5,6 +5,10 @@ Run each numerics in its own process (XLA reads its flags once, when JAX starts)
     python tests/learning_margins.py --seeds 16                # XLA's default numerics
     XLA_FLAGS=--xla_cpu_enable_fast_math=true python tests/learning_margins.py --seeds 16
 
+Stable-Baselines3's run does not go through XLA; its second numerics is torch without SIMD kernels
+(``ATEN_CPU_CAPABILITY=default``). The host-path RNA run compiles its networks inside the library, so
+it is also measured as the suite compiles it (``XLA_FLAGS=--xla_backend_optimization_level=0``).
+
 It prints, per case and statistic, the sorted per-seed values, their minimum, median and maximum;
 the tests' docstrings quote these figures. ``--first`` moves the seed range (seeds first .. first+n-1).
 """

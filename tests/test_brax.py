@@ -313,21 +313,25 @@ def test_ppo_learns_inverted_pendulum():
     episode return of the first 2 and the last 4 updates (200-step episodes; a random policy keeps
     the pole up for about 5 steps).
 
-    MEASURED_BRAX_PPO
+    Measured (tests/learning_margins.py): default numerics, seeds 0–15: first 5.1–6.8, last
+    56.7–93.3; fast math, seeds 100–107: first 5.2–6.1, last 41.7–76.1. Every seed's last updates
+    above 30 and above 4 × its first ones hold with a margin (worst measured: 41.7, and 6.1 ×).
     """
     statistics = learning.brax_ppo_pendulum(range(4))
     first, last = statistics["first_updates"], statistics["last_updates"]
     assert np.all(first < 15), first
-    assert BRAX_PPO_ASSERT, (first, last)
+    assert np.all(last > 30) and np.all(last > 4 * first), (first, last)
 
 
 def test_sac_learns_inverted_pendulum():
     """SAC, 3,000 steps (2 copies, 500 random warm-up transitions, then an update per step), seeds
     0–3 in one vmapped call: the mean episode return of the first and the last of six log rows.
 
-    MEASURED_BRAX_SAC
+    Measured (tests/learning_margins.py): default numerics, seeds 0–15: first 4.1–6.0, last
+    57.6–104.8; fast math, seeds 100–107: first 4.1–6.5, last 65.3–90.3. Every seed's last row
+    above 30 and above 3 × its first holds with a margin (worst measured: 57.6, and 8.9 ×).
     """
     statistics = learning.brax_sac_pendulum(range(4))
     first, last = statistics["first_rows"], statistics["last_rows"]
     assert np.all(first < 15), first
-    assert BRAX_SAC_ASSERT, (first, last)
+    assert np.all(last > 30) and np.all(last > 3 * first), (first, last)

@@ -11,8 +11,11 @@ def test_sb3_ppo_learns_cartpole_with_resampled_pole_lengths():
     """examples/sb3_ppo_cartpole.py as users run it, 60k steps, seed 0; the greedy policy's mean return
     at the default context (the untrained policy scores below 100).
 
-    MEASURED_SB3
+    Measured (tests/learning_margins.py; the run does not go through XLA, so the second numerics
+    is torch's kernels without SIMD, ATEN_CPU_CAPABILITY=default): default, seeds 0–7: min 299,
+    seven of eight 500; without SIMD, seeds 100–103: min 279, three of four 500. A seed reaching
+    400 is therefore luck about once in six; >= 200 holds with a margin (worst measured 279).
     """
     example = learning._example("sb3_ppo_cartpole")
     assert example.evaluate(example.train(timesteps=1, seed=0)) < 100  # not solved before learning
-    assert learning.sb3_cartpole([0])["return"][0] >= SB3_THRESHOLD
+    assert learning.sb3_cartpole([0])["return"][0] >= 200
