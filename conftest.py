@@ -16,12 +16,6 @@ from contextrl.xla_flags import xla_cpu_workaround
 
 ROOT = Path(__file__).resolve().parent
 
-# Compiling, not running, is most of the suite's time: XLA's backend optimisation off makes programs
-# compile 2-3x faster and run about 2x slower, a gain for every test but those that train for long;
-# those (tests/learning.py) compile at XLA's default level, the numerics their margins were measured on.
-if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_backend_optimization_level=0"
-    os.environ["XLA_FLAGS"] = flags.strip()
 xla_cpu_workaround()  # before any test starts JAX's CPU backend (see README, process-wide settings)
 
 # One on-disk JAX compilation cache for every process of the suite: the xdist workers, and the CLI

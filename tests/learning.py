@@ -21,8 +21,8 @@ from contextrl.agents import dqn, evaluate, ppo, sac
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
-# XLA's default optimisation level, whatever XLA_FLAGS says: the test session lowers it for every
-# other program (conftest.py), and a learning test must run the numerics its margins were measured on.
+# XLA's default optimisation level, whatever XLA_FLAGS says: a learning test runs the numerics its
+# margins were measured on.
 MEASURED_NUMERICS = {"xla_backend_optimization_level": 3}
 
 

@@ -342,7 +342,7 @@ def test_ppo_lowers_the_hamming_distance_on_short_synthetic_targets():
     first 100.
 
     Measured (tests/learning_margins.py), the last 100 episodes' distance over the first 100's:
-    default numerics, seeds 0–15: 0.26–0.58, median 0.37; backend optimisation off (the suite's),
+    default numerics, seeds 0–15: 0.26–0.58, median 0.37; XLA's backend optimisation off,
     seeds 100–107: 0.27–0.58, median 0.39. The former bound of 0.6 cleared the worst seed by 0.02;
     0.8 (still a fifth of the distance learned away) clears it by 0.22.
     """
