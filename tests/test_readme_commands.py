@@ -1,6 +1,6 @@
 """The README's ``contextrl run`` lines are accepted as written: each one that starts a new run is
 checked with ``--dry-run --no-calibration``, which validates the whole spec exactly as the run does and
-trains nothing. (The README's Python blocks run as tests through Sybil, see ../conftest.py; `make run`
+trains nothing. (The README's Python blocks run in test_readme.py; `make run`
 itself runs in .ci/run after the suite.)"""
 
 import re
