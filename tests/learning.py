@@ -2,7 +2,7 @@
 
 A learning test asserts a statistic of a few seeds. Whether that statistic can fail by luck is a
 question about its distribution, which ``tests/learning_margins.py`` measures by running the same
-function here over many seeds and under two XLA numerics; each test's docstring quotes what it printed.
+function here over many seeds and under two numerics; each test's docstring quotes what it printed.
 Every function returns per-seed numbers (numpy arrays, one entry per seed), never a verdict.
 """
 
@@ -103,7 +103,8 @@ def sac_pendulum(seeds) -> dict[str, np.ndarray]:
     }
 
 
-def _example(name: str):
+def load_example(name: str):
+    """examples/NAME.py as a module, as a user would run it."""
     spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
@@ -114,7 +115,7 @@ def _example(name: str):
 def purejaxrl_cartpole(seeds) -> dict[str, np.ndarray]:
     """examples/purejaxrl_ppo_cartpole.py (PureJaxRL's PPO on the gymnax face, 100k steps, pole
     lengths resampled from U(0.25, 0.75)): mean return of the first 5 and the last 10 % of updates."""
-    example = _example("purejaxrl_ppo_cartpole")
+    example = load_example("purejaxrl_ppo_cartpole")
     out = _jit(jax.vmap(example.make_train(example.CONFIG)))(_keys(seeds))
     returns = np.asarray(jax.vmap(example.returns_per_update)(out["metrics"]))
     tail = returns.shape[1] // 10
@@ -127,7 +128,7 @@ def purejaxrl_cartpole(seeds) -> dict[str, np.ndarray]:
 def sb3_cartpole(seeds, timesteps: int = 60_000) -> dict[str, np.ndarray]:
     """examples/sb3_ppo_cartpole.py as users run it (Stable-Baselines3 PPO, pole lengths resampled and
     shown): the greedy policy's mean return at the default context, one seed after another."""
-    example = _example("sb3_ppo_cartpole")
+    example = load_example("sb3_ppo_cartpole")
     scores = [example.main(["--timesteps", str(timesteps), "--seed", str(int(s))]) for s in seeds]
     return {"return": np.asarray(scores)}
 

@@ -1,29 +1,19 @@
 """The DmcWalker visibility example runs end to end and shows the viscosity only when asked."""
 
-import importlib.util
 import os
-from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import learning  # noqa: E402  (tests/learning.py loads the example)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("dm_control")
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "dmc_walker_visibility.py"
-
-
-def _example():
-    spec = importlib.util.spec_from_file_location("dmc_walker_visibility", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 def test_visibility_example_trains_both_variants_and_tests_on_held_out_viscosities():
-    example = _example()
+    example = learning.load_example("dmc_walker_visibility")
     hidden = example.make_env("hidden", {"viscosity": 2.0}, 10).reset(seed=0)[0]
     thin = example.make_env("visible", {"viscosity": 1.0}, 10).reset(seed=0)[0]
     thick = example.make_env("visible", {"viscosity": 2.0}, 10).reset(seed=0)[0]

@@ -16,6 +16,6 @@ def test_sb3_ppo_learns_cartpole_with_resampled_pole_lengths():
     seven of eight 500; without SIMD, seeds 100–103: min 279, three of four 500. A seed reaching
     400 is therefore luck about once in six; >= 200 holds with a margin (worst measured 279).
     """
-    example = learning._example("sb3_ppo_cartpole")
+    example = learning.load_example("sb3_ppo_cartpole")
     assert example.evaluate(example.train(timesteps=1, seed=0)) < 100  # not solved before learning
     assert learning.sb3_cartpole([0])["return"][0] >= 200
