@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from contextrl.analysis import metrics, plots
-from contextrl.experiments import RunDir, parse_spec, report
-from contextrl.experiments.analyze import learning_section, score_matrix
+from contextrl.experiments import RunDir, expand, parse_spec, report
+from contextrl.experiments.analyze import learning_section, score_cells, score_matrices
 from contextrl.experiments.runs import write_parquet
 
 # 2 seeds × 2 contexts. Hand computation (see each test):
@@ -52,11 +52,11 @@ def results_table(shift: float) -> pd.DataFrame:
 
 @pytest.mark.parametrize("shift", [0.0, -100.0])
 def test_gap_iqm_and_improvement_match_hand_computation(shift):
-    frame = results_table(shift)
-    general = score_matrix(frame[frame["kind"] == "general"])
-    specialists = frame[frame["kind"] == "specialist"].assign(context_index=lambda f: f["context"])
-    specialists = score_matrix(specialists)
+    cells = score_cells(results_table(shift))
+    scores = score_matrices(cells, cells["kind"])
+    general, specialists = scores["general"].matrix, scores["specialist"].matrix
     np.testing.assert_array_equal(general, GENERAL + shift)
+    np.testing.assert_array_equal(specialists, SPECIALISTS + shift)  # a column per context
     # per context, specialist mean − general mean: (3 − 1.5) and (6 − 4.5)
     assert metrics.context_optimality_gap(general, specialists) == pytest.approx(1.5)
     # sorted general returns 1, 2, 3, 6: the middle two average 2.5
@@ -116,12 +116,16 @@ def test_report_warns_when_agents_do_not_beat_a_random_policy():
     )
     training = pd.DataFrame(
         {
+            "trial": [
+                f"visibility-{v}-s{seed}" for v in ("hidden", "concat_all") for seed in (0, 1)
+            ],
+            "kind": "visibility",
             "variant": ["hidden"] * 2 + ["concat_all"] * 2,
             "train_return": [-160.0, -140.0, -1150.0, -1100.0],
             "random_return": [-1200.0] * 4,
         }
     )
-    section = learning_section(spec, training)
+    section = learning_section(spec, training, expand(spec))
     rows = section.tables[0][1]
     # hidden: −150 is far above −1200; concat_all: −1125 is 75 above, less than 10% of 1200
     assert [row["learned"] for row in rows] == ["yes", "NO"]

@@ -9,7 +9,12 @@ import pytest
 
 from contextrl.analysis import plots
 from contextrl.analysis.intervals import Interval
-from contextrl.experiments.analyze import natural_key, per_context_table, return_lines
+from contextrl.experiments.analyze import (
+    natural_key,
+    per_context_table,
+    return_lines,
+    score_cells,
+)
 
 
 def results_frame() -> pd.DataFrame:
@@ -42,7 +47,7 @@ def test_return_lines_and_per_context_table_by_hand():
     x, runs = lines["hidden"]
     np.testing.assert_allclose(x, [0.2, 0.4, 0.8])
     np.testing.assert_allclose(runs, [[2, 4, 8], [3, 5, 9]])  # seeds × points
-    table = per_context_table(frame)
+    table = per_context_table(score_cells(frame))
     assert list(table.columns[:4]) == ["agent", "test_set", "context_index", "length"]
     assert "gravity" not in table  # not varied
     row = table[(table["agent"] == "hidden") & (table["context_index"] == 2)].iloc[0]

@@ -9,6 +9,7 @@ always gives the same interval.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from collections.abc import Callable, Mapping
 
 import numpy as np
@@ -39,10 +40,21 @@ def _check(reps: int, confidence: float) -> None:
 
 
 def stratified_resample(scores: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One replicate: for each context, the runs drawn with replacement."""
+    """One replicate: for each context, its runs drawn with replacement.
+
+    A context of a masked matrix draws as many runs as it has, from those it has; the rest of its
+    column stays masked, so a context with fewer runs keeps its weight and its spread."""
     runs, contexts = scores.shape
-    rows = rng.integers(0, runs, size=(runs, contexts))
-    return scores[rows, np.arange(contexts)[None, :]]
+    if not isinstance(scores, np.ma.MaskedArray):
+        rows = rng.integers(0, runs, size=(runs, contexts))
+        return scores[rows, np.arange(contexts)[None, :]]
+    mask = np.ma.getmaskarray(scores)
+    counts = (~mask).sum(axis=0)
+    present_first = np.argsort(mask, axis=0, kind="stable")  # each column's present runs on top
+    draws = rng.integers(0, np.maximum(counts, 1)[None, :], size=(runs, contexts))
+    rows = np.take_along_axis(present_first, draws, axis=0)
+    values = np.ma.getdata(scores)[rows, np.arange(contexts)[None, :]]
+    return np.ma.MaskedArray(values, np.arange(runs)[:, None] >= counts[None, :])
 
 
 def _percentiles(point: float, samples: np.ndarray, confidence: float) -> Interval:
@@ -96,16 +108,24 @@ def interval_estimates(
 ) -> dict[str, dict[str, Interval]]:
     """Every metric for every named score matrix: ``{name: {metric: Interval}}``.
 
-    Each (name, metric) pair gets its own generator derived from ``seed`` and its position, so adding a
-    metric never changes the intervals of the others.
+    Each (matrix, metric) pair gets its own generator derived from ``seed``, the metric's name and the
+    scores themselves (values and missing cells), not from names or positions: the same statistic of
+    the same scores has the same interval in every table of a report, and adding a metric or an agent
+    never changes the intervals of the others.
     """
     out: dict[str, dict[str, Interval]] = {}
-    for i, (name, scores) in enumerate(scores_by_name.items()):
+    for name, scores in scores_by_name.items():
+        checked = as_scores(scores, str(name))
+        fingerprint = hashlib.blake2b(repr(checked.shape).encode(), digest_size=8)
+        fingerprint.update(np.ma.getdata(checked).tobytes())
+        fingerprint.update(np.ma.getmaskarray(checked).tobytes())
         out[name] = {}
-        for j, (metric_name, metric) in enumerate(metrics.items()):
-            sub_seed = int(np.random.SeedSequence([seed, i, j]).generate_state(1)[0])
+        for metric_name, metric in metrics.items():
+            stream = hashlib.blake2b(metric_name.encode(), digest_size=8, key=fingerprint.digest())
+            entropy = [seed, *np.frombuffer(stream.digest(), dtype=np.uint32).tolist()]
+            sub_seed = int(np.random.SeedSequence(entropy).generate_state(1)[0])
             out[name][metric_name] = bootstrap_ci(
-                scores, metric, reps=reps, confidence=confidence, seed=sub_seed
+                checked, metric, reps=reps, confidence=confidence, seed=sub_seed
             )
     return out
 
@@ -119,7 +139,8 @@ def curve_band(
     rng = np.random.default_rng(seed)
     runs = curves.shape[0]
     rows = rng.integers(0, runs, size=(reps, runs))
-    means = curves[rows].mean(axis=1)
+    # a point no resampled run reaches has no mean in that replicate (masked cells: missing runs)
+    means = np.ma.filled(curves[rows].mean(axis=1), np.nan)
     alpha = 100.0 * (1.0 - confidence) / 2.0
-    low, high = np.percentile(means, [alpha, 100.0 - alpha], axis=0)
-    return curves.mean(axis=0), low, high
+    low, high = np.nanpercentile(means, [alpha, 100.0 - alpha], axis=0)
+    return np.ma.filled(curves.mean(axis=0), np.nan), low, high

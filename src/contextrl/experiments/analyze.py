@@ -3,8 +3,9 @@ sections (``spec.sections``), failures and the spec; plus the helpers protocols 
 
 from __future__ import annotations
 
+import dataclasses
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -14,7 +15,14 @@ import yaml
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import Interval, interval_estimates
 from contextrl.analysis.report import Figure, Section, render
-from contextrl.experiments.protocols import expand
+from contextrl.experiments.protocols import (
+    TRIAL_COLUMNS,
+    Plan,
+    Trial,
+    context_columns,
+    expand,
+    trial_columns,
+)
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import CommonSpec, spec_to_dict
 
@@ -31,19 +39,200 @@ AGENT_FIELDS = (
 )  # fmt: skip
 
 
-def score_matrix(frame: pd.DataFrame) -> np.ndarray:
-    """Returns as (seeds × contexts) for one agent kind/variant."""
-    table = frame.pivot_table(
-        index="seed", columns="context_index", values="return", aggfunc="mean"
-    )
-    return table.dropna(axis=0).to_numpy()
+CELL = ("kind", "variant", "test_set", "context", "seed")  # the key of a score cell
 
 
-def interval_rows(results: dict[str, dict[str, Interval]]) -> list[dict]:
-    return [
-        {"agent": name, **{metric: str(interval) for metric, interval in row.items()}}
-        for name, row in results.items()
+def score_cells(rows: pd.DataFrame) -> pd.DataFrame:
+    """The one aggregation every number of a report is read from: a row per (agent kind, variant,
+    test set, context, seed) cell, so two sections can never key the same returns differently.
+
+    ``context`` is the ``context`` label where the protocol writes one (the optimality gap: a
+    specialist's one-context test set is context i of the training contexts), else the index in
+    the test set. ``return`` is the mean over the cell's rows (several only where agents of one kind
+    share the contexts: the specialists in ``contextrl eval``; ``trials`` counts them); NaN where no
+    row has a finite return, ``missing`` then saying why (the rows of :func:`absent_rows`, or the
+    non-finite return). Every other column keeps its first value (features, labels, the trial).
+    """
+    context = rows["context"] if "context" in rows else rows["context_index"]
+    values = rows["return"].to_numpy(float)
+    finite = np.isfinite(values)
+    known = rows["missing"].fillna("") if "missing" in rows else [""] * len(rows)
+    why = [
+        w or ("" if ok else f"its return is {v}")
+        for w, v, ok in zip(known, values, finite, strict=True)
     ]
+    rows = rows.assign(context=context, missing=why, **{"return": np.where(finite, values, np.nan)})
+    grouped = rows.groupby(list(CELL), sort=False, dropna=False)
+    cells = grouped.first()
+    cells["return"] = grouped["return"].mean()
+    cells["trials"] = grouped["trial"].nunique()
+    cells["missing"] = grouped["missing"].agg(
+        lambda reasons: "; ".join(dict.fromkeys(r for r in reasons if r))
+    )
+    return cells.reset_index()
+
+
+@dataclasses.dataclass(frozen=True)
+class Scores:
+    """One agent's score matrix, seeds × (test set, context) columns, masked where a cell is missing,
+    with each missing cell as (seed, test set, context, why)."""
+
+    matrix: np.ndarray
+    seeds: tuple
+    contexts: tuple[tuple[str, Any], ...]
+    missing: tuple[tuple[Any, str, Any, str], ...]
+
+    @property
+    def present(self) -> int:
+        return int(self.matrix.size - np.ma.count_masked(self.matrix))
+
+    @property
+    def values(self) -> np.ndarray:
+        """The returns that exist, flattened."""
+        return np.ma.compressed(self.matrix)
+
+    def cells_note(self) -> str:
+        """The cells a statistic is computed on, said in the report next to it."""
+        seeds, contexts = self.matrix.shape
+        shape = f"{seeds} seeds × {contexts} contexts"
+        if self.present == self.matrix.size:
+            return f"all {self.matrix.size} ({shape})"
+        return f"{self.present} of {self.matrix.size} ({shape}; the missing under Missing results)"
+
+
+def score_matrices(cells: pd.DataFrame, labels: pd.Series | None = None) -> dict[str, Scores]:
+    """Per label (default: :func:`agent_label`), naturally sorted, the :class:`Scores` of its cells
+    (from :func:`score_cells`); a label whose rows share a cell (two kinds or variants under one
+    label) is refused rather than averaged."""
+    labels = agent_label(cells) if labels is None else labels
+    out = {}
+    for name, group in sorted(cells.groupby(labels, sort=False), key=lambda g: natural_key(g[0])):
+        indexed = group.set_index(["seed", "test_set", "context"])
+        if indexed.index.has_duplicates:
+            raise ValueError(
+                f"score matrix {name!r}: several agents share a (seed, test set, context) cell; "
+                "label each kind and variant apart"
+            )
+        wide = indexed["return"].unstack(["test_set", "context"])
+        columns = sorted(wide.columns, key=lambda c: (natural_key(c[0]), natural_key(c[1])))
+        wide = wide[columns].sort_index()
+        matrix = np.ma.masked_invalid(wide.to_numpy(float))
+        why = indexed["missing"]
+        missing = tuple(
+            (
+                seed,
+                test_set,
+                context,
+                why.get((seed, test_set, context)) or "no result, no record why",
+            )
+            for seed, row in zip(wide.index, np.ma.getmaskarray(matrix), strict=True)
+            for (test_set, context), absent in zip(columns, row, strict=True)
+            if absent
+        )
+        out[name] = Scores(
+            matrix if missing else matrix.data,
+            tuple(wide.index),
+            tuple(columns),
+            missing,
+        )
+    return out
+
+
+def score_intervals(
+    scores: Mapping[str, Scores],
+    *,
+    reps: int,
+    seed: int,
+    metrics_: Mapping[str, Callable] = CI_METRICS,
+) -> tuple[dict[str, dict[str, Interval]], list[dict]]:
+    """Bootstrap intervals of every agent with a present cell, and a table row per agent saying
+    which cells its statistics are computed on (an agent with none says so instead)."""
+    intervals = interval_estimates(
+        {name: s.matrix for name, s in scores.items() if s.present}, metrics_, reps=reps, seed=seed
+    )
+    rows = [
+        {
+            "agent": name,
+            **{
+                metric: str(intervals[name][metric]) if name in intervals else "no result"
+                for metric in metrics_
+            },
+            "cells (seeds × contexts)": s.cells_note(),
+        }
+        for name, s in scores.items()
+    ]
+    return intervals, rows
+
+
+MISSING_TEXT = (
+    "Some planned results are missing (each is listed under Missing results with why); every "
+    "statistic is computed on the cells that exist, and says on how many."
+)
+
+
+def missing_rows(scores: Mapping[str, Scores]) -> list[dict]:
+    """One row per agent, seed, test set and reason: the contexts that have no result."""
+    grouped: dict[tuple, list] = {}
+    for name, s in scores.items():
+        for seed, test_set, context, why in s.missing:
+            grouped.setdefault((name, seed, test_set, why), []).append(context)
+    return [
+        {
+            "agent": name,
+            "seed": seed,
+            "test set": test_set,
+            "contexts": ", ".join(str(c) for c in contexts),
+            "why": why,
+        }
+        for (name, seed, test_set, why), contexts in grouped.items()
+    ]
+
+
+def absent_rows(
+    plan: Plan,
+    results: pd.DataFrame,
+    contexts_of: Callable[[Trial], dict[str, Any]],
+    why: Callable[[Trial], str],
+) -> pd.DataFrame:
+    """A row per context of every planned trial that ``results`` lacks, return NaN and ``missing``
+    saying why, so a score matrix names the cell instead of dropping a seed or a context."""
+    done = set(results["trial"]) if len(results) else set()
+    frames = [
+        pd.DataFrame({**trial_columns(t), **contexts_of(t), "return": np.nan, "missing": why(t)})
+        for t in plan.trials
+        if t.id not in done
+    ]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def absence_reason(run: RunDir, plan: Plan) -> Callable[[Trial], str]:
+    """Why a planned trial has no results: its chunk failed (with the error), has not run, or ran
+    without writing its rows."""
+    failed = {trial: f for f in run.failures() for trial in f["trials"]}
+    finished = run.finished()
+    chunk_of = {plan.trials[i].id: c for c, members in enumerate(plan.chunks) for i in members}
+
+    def why(trial: Trial) -> str:
+        chunk = chunk_of[trial.id]
+        if trial.id in failed:
+            return f"{trial.id}: chunk {chunk} failed: {failed[trial.id]['error']}"
+        if chunk in finished:
+            return f"{trial.id}: chunk {chunk} finished without its rows"
+        return f"{trial.id}: chunk {chunk} has not run yet"
+
+    return why
+
+
+def run_cells(run: RunDir, plan: Plan, results: pd.DataFrame) -> pd.DataFrame:
+    """The score cells of a run's results, with every planned cell that has none named."""
+    names = plan.spec.space().names
+    absent = absent_rows(
+        plan,
+        results,
+        lambda trial: context_columns(plan.sets[trial.test_set], names),
+        absence_reason(run, plan),
+    )
+    return score_cells(pd.concat([results, absent], ignore_index=True))
 
 
 def figure(name: str, matplotlib_figure, caption: str) -> Figure:
@@ -166,23 +355,29 @@ def varying_features(results: pd.DataFrame) -> list[str]:
     ]
 
 
-def per_context_table(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per agent label × evaluated context: the varying features, mean and spread of the
-    return over seeds, and the number of seeds; naturally sorted."""
-    features = varying_features(results)
-    frame = results.assign(agent=agent_label(results))
-    labels = [c for c in LABEL_COLUMNS if c in frame.columns]
+def per_context_table(cells: pd.DataFrame) -> pd.DataFrame:
+    """One row per agent label × evaluated context (from :func:`score_cells`): the varying features,
+    mean and spread of the return over the seeds that have one, and their number; naturally sorted.
+    The ``context`` key is shown where it is not the index (the optimality gap's label)."""
+    features = varying_features(cells)
+    frame = cells.assign(agent=agent_label(cells))
+    labels = [c for c in LABEL_COLUMNS if c in frame.columns and c != "context"]
     table = (
-        frame.groupby(["agent", "test_set", "context_index"], sort=False)
+        frame.groupby(["agent", "test_set", "context"], sort=False)
         .agg(
+            context_index=("context_index", "first"),
             **{name: (f"ctx.{name}", "first") for name in features},
             **{name: (name, "first") for name in labels},
             mean_return=("return", "mean"),
             std_return=("return", "std"),
-            seeds=("seed", "nunique"),
+            seeds=("return", "count"),
         )
         .reset_index()
     )
+    if (table["context"] == table["context_index"]).all():
+        table = table.drop(columns="context")
+    else:  # after the features, as a label
+        table.insert(len(table.columns) - 3, "context", table.pop("context"))
     table["std_return"] = table["std_return"].fillna(0.0)
     order = sorted(
         range(len(table)),
@@ -223,36 +418,38 @@ def return_lines(
     results: pd.DataFrame, column: str, labels: pd.Series | None = None
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per label (default: the agent label): x (the value of ``column``, binned when there are many)
-    and returns shaped seeds × points."""
+    and the mean return of each seed there, shaped seeds × points (masked where a seed has none)."""
     labels = agent_label(results) if labels is None else labels
     frame = results.assign(agent=labels, x=_binned(results[column].to_numpy(float)))
     lines = {}
     for label in sorted(frame["agent"].unique(), key=natural_key):
         group = frame[frame["agent"] == label]
         wide = group.pivot_table(index="seed", columns="x", values="return", aggfunc="mean")
-        wide = wide.dropna(axis=1)
-        if wide.shape[1]:
-            lines[label] = (wide.columns.to_numpy(float), wide.to_numpy(float))
+        if wide.shape[1]:  # a seed without a return at a point is masked there, not dropped
+            runs = np.ma.masked_invalid(wide.to_numpy(float))
+            lines[label] = (wide.columns.to_numpy(float), runs if runs.mask.any() else runs.data)
     return lines
 
 
 def per_context_section(
     spec: CommonSpec,
     plan,
-    results: pd.DataFrame,
+    cells: pd.DataFrame,
     table: pd.DataFrame,
     *,
     title: str = "Test return per context",
     prefix: str = "",
     csv: str = "results/per_context.csv",
     text: Sequence[str] = (),
+    tables: Sequence[tuple[str, list[dict]]] = (),
 ) -> Section:
     """Test return against each varied feature (CI band over seeds, training range shaded), a heat
-    map when two features vary, and the per-context table (all of it in ``csv``)."""
-    features = varying_features(results)
+    map when two features vary, and the per-context table (all of it in ``csv``), from the score
+    cells of :func:`score_cells`; ``tables`` come last."""
+    features = varying_features(cells)
     figures = []
     for feature in features:
-        lines = return_lines(results, f"ctx.{feature}")
+        lines = return_lines(cells, f"ctx.{feature}")
         if not lines:
             continue
         figures.append(
@@ -261,7 +458,7 @@ def per_context_section(
                 plots.return_vs_feature(
                     lines,
                     xlabel=feature,
-                    train_range=_train_range(plan, results, feature),
+                    train_range=_train_range(plan, cells, feature),
                     title=f"Test return against {feature}",
                     seed=spec.seed,
                 ),
@@ -272,26 +469,29 @@ def per_context_section(
         )
     if len(features) == 2 and not spec.draws_heatmap:
         x_name, y_name = features
-        low, high = float(results["return"].min()), float(results["return"].max())
-        frame = results.assign(agent=agent_label(results))
+        low, high = float(cells["return"].min()), float(cells["return"].max())
+        frame = cells.assign(agent=agent_label(cells))
         for label in sorted(frame["agent"].unique(), key=natural_key):
-            cells = (
+            points = (
                 frame[frame["agent"] == label]
-                .groupby(["test_set", "context_index"])
+                .groupby(["test_set", "context"])
                 .agg(
                     x=(f"ctx.{x_name}", "first"), y=(f"ctx.{y_name}", "first"), v=("return", "mean")
                 )
+                .dropna(subset=["v"])  # a context no seed has a return on has nothing to draw
             )
+            if points.empty:
+                continue
             figures.append(
                 figure(
                     f"{prefix}heatmap-{label.replace(', ', '-')}",
                     plots.heatmap(
-                        cells["x"],
-                        cells["y"],
-                        cells["v"],
+                        points["x"],
+                        points["y"],
+                        points["v"],
                         xlabel=x_name,
                         ylabel=y_name,
-                        bins=max(2, min(12, int(np.sqrt(len(cells))))),
+                        bins=max(2, min(12, int(np.sqrt(len(points))))),
                         title=label,
                         vmin=low,
                         vmax=high,
@@ -301,7 +501,9 @@ def per_context_section(
             )
     # one row per context, a column per agent: easy to read across; the CSV has spreads and seeds
     keys = [c for c in table.columns if c not in ("agent", "mean_return", "std_return", "seeds")]
-    wide = table.pivot_table(index=keys, columns="agent", values="mean_return", sort=False)
+    wide = table.pivot_table(
+        index=keys, columns="agent", values="mean_return", sort=False, dropna=False
+    )
     wide = wide[sorted(wide.columns, key=natural_key)].reset_index()
     shown = wide.head(PER_CONTEXT_ROWS).to_dict("records")
     more = len(wide) - len(shown)
@@ -309,40 +511,52 @@ def per_context_section(
         f"; first {len(shown)} of {len(wide)} contexts, all in {csv}" if more else ""
     )
     text = [*text, f"Every evaluated context, all agents: {csv}."]
-    intervals = interval_estimates(
-        {
-            label: score_matrix(group)
-            for label, group in sorted(
-                results.groupby(agent_label(results), sort=False), key=lambda g: natural_key(g[0])
-            )
-        },
-        CI_METRICS,
-        reps=spec.bootstrap_reps,
-        seed=spec.seed,
-    )
-    tables = [("Test return (95% CI over seeds and contexts)", interval_rows(intervals))]
-    return Section(title, text, [*tables, (caption, shown)], figures)
+    pooled = cells[cells["trials"] > 1]
+    for label, group in pooled.groupby(agent_label(pooled), sort=False):
+        text.append(
+            f"{label}: each seed's return on a context is the mean over its "
+            f"{int(group['trials'].max())} agents (trained on different contexts)."
+        )
+    _, rows = score_intervals(score_matrices(cells), reps=spec.bootstrap_reps, seed=spec.seed)
+    intervals = ("Test return (95% CI over seeds and contexts)", rows)
+    return Section(title, text, [intervals, (caption, shown), *tables], figures)
 
 
-def evaluation_sections(run: RunDir, spec: CommonSpec) -> list[Section]:
-    """One section per ``contextrl eval`` of the run (results in evaluations/NAME.parquet)."""
+def evaluation_sections(run: RunDir, spec: CommonSpec, results: pd.DataFrame) -> list[Section]:
+    """One section per ``contextrl eval`` of the run (results in evaluations/NAME.parquet); a
+    trial of the run that an evaluation lacks is named there with why."""
     folder = run.path / "evaluations"
     if not folder.exists():
         return []
     plan = expand(spec)
+    finished = set(results["trial"]) if len(results) else set()
+    unfinished = absence_reason(run, plan)
+
+    def why(trial: Trial) -> str:
+        if trial.id in finished:
+            return f"{trial.id}: finished after this evaluation; run contextrl eval again"
+        return unfinished(trial) + " (so no agent to evaluate)"
+
     sections = []
     for file in sorted(folder.glob("*.parquet"), key=lambda p: natural_key(p.stem)):
         frame = pd.read_parquet(file)
         if frame.empty:
             continue
-        table = per_context_table(frame)
+        tested = frame[frame["trial"] == frame["trial"].iloc[0]].drop(
+            columns=[*TRIAL_COLUMNS, "return"]
+        )
+        columns = {c: tested[c].to_numpy() for c in tested.columns}  # every agent's contexts
+        absent = absent_rows(plan, frame, lambda _, columns=columns: columns, why)
+        cells = score_cells(pd.concat([frame, absent], ignore_index=True))
+        table = per_context_table(cells)
         write_text(file.with_suffix(".csv"), table.to_csv(index=False))
         described = f"({frame['contexts'].iloc[0]})" if "contexts" in frame else ""
+        missing = missing_rows(score_matrices(cells))
         sections.append(
             per_context_section(
                 spec,
                 plan,
-                frame,
+                cells,
                 table,
                 title=f"Evaluation on new contexts: {file.stem}",
                 prefix=f"eval-{file.stem}-",
@@ -351,7 +565,9 @@ def evaluation_sections(run: RunDir, spec: CommonSpec) -> list[Section]:
                     f"The run's saved agents evaluated without retraining on "
                     f"{frame['context_index'].nunique()} new contexts {described}".rstrip()
                     + f" ({int(frame['episodes'].iloc[0])} episodes each)."
-                ],
+                ]
+                + ([MISSING_TEXT] if missing else []),
+                tables=[("Missing results", missing)] if missing else [],
             )
         )
     return sections
@@ -362,33 +578,51 @@ def learned(trained: float, random: float) -> bool:
     return trained - random >= LEARNED_MARGIN * max(abs(random), 1.0)
 
 
-def learning_section(spec: CommonSpec, training: pd.DataFrame) -> Section:
-    """Per variant: the trained agents' return on their training contexts next to a random policy's."""
+def learning_section(spec: CommonSpec, training: pd.DataFrame, plan: Plan) -> Section:
+    """Per variant and agent kind: the trained agents' return on their own training contexts next to
+    a random policy's on the same contexts. Kinds are never pooled (a general agent that learned
+    nothing would hide behind specialists that did), and a kind trained on several sets (one
+    specialist per context) is checked set by set; a warning names each kind or set that failed."""
+    sets = {t.id: t.train_set for t in plan.trials}
+    # a trial outside the plan's grid (hpo's best member) is its kind's only agent
+    frame = training.assign(train_set=training["trial"].map(sets).fillna(""))
     rows, warnings = [], []
-    for variant, group in training.groupby("variant", sort=False):
+    for (variant, kind), group in frame.groupby(["variant", "kind"], sort=False):
+        agents = group.groupby("train_set", sort=False)[["train_return", "random_return"]].mean()
+        failed = agents[~agents.apply(lambda a: learned(*a), axis=1)]
         trained, random = group["train_return"], group["random_return"]
+        verdict = "yes" if failed.empty else "NO"
+        if len(agents) > 1 and not failed.empty:
+            verdict = f"NO for {len(failed)} of {len(agents)} training sets"
         rows.append(
             {
                 "variant": variant,
+                "kind": kind,
                 "agents": len(group),
                 "trained: mean return": float(trained.mean()),
                 "trained: worst seed": float(trained.min()),
                 "random policy: mean return": float(random.mean()),
-                "learned": "yes" if learned(trained.mean(), random.mean()) else "NO",
+                "learned": verdict,
             }
         )
-        if not learned(trained.mean(), random.mean()):
-            warnings.append(
-                f"{spec.agent} agents ({variant}) do not clearly beat a random policy on their own "
-                f"training contexts (mean return {trained.mean():.4g} vs random "
-                f"{random.mean():.4g}); the results below describe agents that did not learn. "
-                "Train longer or tune the agent's options."
-            )
+        if failed.empty:
+            continue
+        where = ", ".join(
+            (f"{kind} trained on {name}: " if len(agents) > 1 else "")
+            + f"mean return {a.train_return:.4g} vs random {a.random_return:.4g}"
+            for name, a in failed.iterrows()
+        )
+        warnings.append(
+            f"{spec.agent} agents of kind {kind} ({variant}) do not clearly beat a random policy "
+            f"on their own training contexts ({where}); the results below describe agents that "
+            "did not learn. Train longer or tune the agent's options."
+        )
     text = [
         "Each trained agent is evaluated on (up to 16 of) its own training contexts, and a uniform "
         f"random policy on the same contexts with the same keys ({spec.eval_episodes} episodes "
-        f"each). An agent has learned when its mean return is at least {LEARNED_MARGIN:.0%} of "
-        "max(|random return|, 1) above the random policy's."
+        f"each). Agents of one kind and variant (per training set) have learned when their mean "
+        f"return is at least {LEARNED_MARGIN:.0%} of max(|random return|, 1) above the random "
+        "policy's."
     ]
     return Section("Did the agents learn?", text, [("Training contexts", rows)], warnings=warnings)
 
@@ -416,17 +650,24 @@ def build_report(run: RunDir) -> str:
     if spec.trains_agents:
         sections.append(environment_section(spec, changed_features(plan)))
         if not training.empty and spec.agent_entry().trained:
-            sections.append(learning_section(spec, training))
+            sections.append(learning_section(spec, training, plan))
     if results.empty:
         sections.append(Section("Results", ["Nothing has finished yet."]))
-    else:
+    elif not spec.trains_agents:
         sections += spec.sections(plan, results, curves)
-        if spec.trains_agents and "context_index" in results:
-            table = per_context_table(results)
-            write_text(run.path / "results" / "per_context.csv", table.to_csv(index=False))
-            if spec.per_context_figures:
-                sections.append(per_context_section(spec, plan, results, table))
-    sections += evaluation_sections(run, spec)
+    else:  # every section reads the same score cells
+        cells = run_cells(run, plan, results)
+        sections += spec.sections(plan, cells, curves)
+        table = per_context_table(cells)
+        write_text(run.path / "results" / "per_context.csv", table.to_csv(index=False))
+        if spec.per_context_figures:
+            sections.append(per_context_section(spec, plan, cells, table))
+        missing = missing_rows(score_matrices(cells))
+        if missing:
+            sections.append(
+                Section("Missing results", [MISSING_TEXT], [("Missing results", missing)])
+            )
+    sections += evaluation_sections(run, spec, results)
     if failures:
         sections.append(
             Section(

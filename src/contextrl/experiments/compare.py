@@ -14,20 +14,22 @@ from pathlib import Path
 import pandas as pd
 
 from contextrl.analysis import plots
-from contextrl.analysis.intervals import interval_estimates
 from contextrl.analysis.report import Section, render
 from contextrl.experiments.analyze import (
-    CI_METRICS,
+    MISSING_TEXT,
     agent_label,
     curves_by_label,
     figure,
-    interval_rows,
-    natural_key,
+    missing_rows,
     return_lines,
-    score_matrix,
+    run_cells,
+    score_intervals,
+    score_matrices,
     varying_features,
 )
+from contextrl.experiments.protocols import expand
 from contextrl.experiments.runs import RunDir, write_text
+from contextrl.experiments.sensitivity import magnitude_lines
 from contextrl.experiments.spec import SpecError
 
 
@@ -42,15 +44,19 @@ def _labels(runs: Sequence[RunDir]) -> list[str]:
     return [str(run.path) for run in runs]
 
 
-def _feature_views(results: pd.DataFrame) -> list[tuple[str, pd.DataFrame, str]]:
-    """(x label, rows, x column): the magnitude A per scaled feature for sensitivity runs (a
-    ``feature`` column), else each varied context feature."""
+def _feature_lines(results: pd.DataFrame) -> list[tuple[str, dict]]:
+    """(x label, lines per run and agent): the magnitude A per scaled feature for sensitivity runs
+    (a ``feature`` column; the default context is every feature's A = 1), else each varied context
+    feature."""
     if "feature" in results and "magnitude" in results:
         return [
-            (f"A × default {feature}", group, "magnitude")
-            for feature, group in results.groupby("feature", sort=False)
+            (f"A × default {feature}", lines)
+            for feature, lines in magnitude_lines(results, "overlay").items()
         ]
-    return [(name, results, f"ctx.{name}") for name in varying_features(results)]
+    return [
+        (name, return_lines(results, f"ctx.{name}", results["overlay"]))
+        for name in varying_features(results)
+    ]
 
 
 def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> Path:
@@ -81,7 +87,8 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
             }
         )
         if len(results):
-            frames.append(results.assign(overlay=label + ": " + agent_label(results)))
+            cells = run_cells(run, expand(spec), results)
+            frames.append(cells.assign(overlay=label + ": " + agent_label(cells)))
         if len(curves):
             curve_frames.append(curves.assign(overlay=label + ": " + agent_label(curves)))
     if not frames:
@@ -89,11 +96,8 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
     results = pd.concat(frames, ignore_index=True)
     seed = specs[0].seed
     reps = min(spec.bootstrap_reps for spec in specs)
-    scores = {
-        label: score_matrix(group)
-        for label, group in sorted(results.groupby("overlay"), key=lambda g: natural_key(g[0]))
-    }
-    cis = interval_estimates(scores, CI_METRICS, reps=reps, seed=seed)
+    scores = score_matrices(results, results["overlay"])
+    cis, ci_rows = score_intervals(scores, reps=reps, seed=seed)
     figures = [
         figure(
             "compare-intervals",
@@ -101,8 +105,8 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
             "Aggregate test return per run and agent with stratified-bootstrap 95% CIs",
         )
     ]
-    for xlabel, group, column in _feature_views(results):
-        lines = return_lines(group, column, group["overlay"])
+    missing = missing_rows(scores)
+    for xlabel, lines in _feature_lines(results):
         if lines:
             slug = "".join(ch if ch.isalnum() else "-" for ch in xlabel)
             figures.append(
@@ -132,7 +136,11 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
             [("Runs", rows)],
         ),
         Section(
-            "Comparison", tables=[("Test return (95% CI)", interval_rows(cis))], figures=figures
+            "Comparison",
+            [MISSING_TEXT] if missing else [],
+            [("Test return (95% CI)", ci_rows)]
+            + ([("Missing results", missing)] if missing else []),
+            figures,
         ),
     ]
     html = render(f"contextrl {protocols[0]}: {' vs '.join(labels)}", sections, {"runs": rows})

@@ -26,9 +26,9 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from contextrl.analysis import plots
+from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import figure
+from contextrl.experiments.analyze import figure, score_matrices
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
 from contextrl.experiments.runs import write_parquet, write_text
 from contextrl.experiments.spec import (
@@ -426,22 +426,24 @@ def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.Da
     return training, evaluations
 
 
-def _sections(spec: HPOSpec, results: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
+def _sections(spec: HPOSpec, cells: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
     bounds = spec.bounds()
-    best = {name: float(results[f"hp.{name}"].iloc[0]) for name in bounds}
+    best = {name: float(cells[f"hp.{name}"].iloc[0]) for name in bounds}
     rows = [
         {"hyper-parameter": name, "best": value, "low": low, "high": high}
         for (name, value), (low, high) in zip(best.items(), bounds.values(), strict=True)
     ]
-    returns = results["return"].to_numpy()
+    (scores,) = score_matrices(cells).values()  # the best member: one seed × the test contexts
+    means = np.ma.compressed(metrics.context_means(scores.matrix))
     text = [
         f"PB2 on Ray Tune: {spec.population} {spec.agent} agents ({spec.variants[0]}) trained on "
         f"{spec.num_train_contexts} contexts for {spec.rounds} rounds of {spec.steps_per_round} "
         "steps; after each round the worst members take the parameters of the best and new "
         "hyper-parameters from PB2's bandit. The best member's final configuration is in "
         f"{BEST_FILE} (use it with: contextrl run PROTOCOL --agent-config {BEST_FILE}).",
-        f"Best member on {len(returns)} test contexts ({spec.eval_episodes} episodes each): mean "
-        f"return {returns.mean():.4g}, worst context {returns.min():.4g}, best {returns.max():.4g}.",
+        f"Best member on {len(means)} test contexts ({spec.eval_episodes} episodes each): mean "
+        f"return {metrics.aggregate_mean(scores.matrix):.4g}, worst context {means.min():.4g}, "
+        f"best {means.max():.4g}.",
     ]
     figures = []
     if not curves.empty:
@@ -466,7 +468,7 @@ def _sections(spec: HPOSpec, results: pd.DataFrame, curves: pd.DataFrame) -> lis
     figures.append(
         figure(
             "hpo-test-ecdf",
-            plots.ecdf({"best configuration": returns}, title="Test returns"),
+            plots.ecdf({"best configuration": scores.values}, title="Test returns"),
             "eCDF of the best member's returns on the test contexts",
         )
     )

@@ -9,13 +9,12 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import interval_estimates, paired_bootstrap_ci
+from contextrl.analysis.intervals import paired_bootstrap_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
-    CI_METRICS,
     figure,
-    interval_rows,
-    score_matrix,
+    score_intervals,
+    score_matrices,
     training_figure,
 )
 from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
@@ -65,24 +64,22 @@ def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-def _sections(spec: OptimalityGapSpec, plan: Plan, results: pd.DataFrame) -> list[Section]:
-    general = results[results["kind"] == "general"]
-    specialists = results[results["kind"] == "specialist"]
+def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
     sections = []
     for variant in spec.variants:
-        g = general[general["variant"] == variant]
-        s = specialists[specialists["variant"] == variant].copy()
-        if g.empty or s.empty:
+        mine = cells[cells["variant"] == variant]
+        scores = score_matrices(mine, mine["kind"])
+        g, s = scores.get("general"), scores.get("specialist")
+        if g is None or s is None or not (g.present and s.present):
             continue
-        s["context_index"] = s["context"]
-        g_scores, s_scores = score_matrix(g), score_matrix(s)
-        if g_scores.shape[1] != s_scores.shape[1]:
-            continue  # some specialists are still missing (unfinished or failed chunks)
-        cis = interval_estimates(
-            {"general": g_scores, "specialists": s_scores},
-            CI_METRICS,
-            reps=spec.bootstrap_reps,
-            seed=spec.seed,
+        if [c for _, c in g.contexts] != [c for _, c in s.contexts]:
+            raise ValueError(
+                f"optimality gap ({variant}): the general agent was tested on contexts "
+                f"{[c for _, c in g.contexts]} but the specialists on {[c for _, c in s.contexts]}"
+            )
+        g_scores, s_scores = g.matrix, s.matrix
+        cis, rows = score_intervals(
+            {"general": g, "specialists": s}, reps=spec.bootstrap_reps, seed=spec.seed
         )
         gap = paired_bootstrap_ci(
             g_scores,
@@ -98,7 +95,7 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, results: pd.DataFrame) -> lis
             reps=spec.bootstrap_reps,
             seed=spec.seed,
         )
-        best = float(max(g_scores.max(), s_scores.max()))
+        best = float(max(g.values.max(), s.values.max()))
         threshold = metrics.near_best_threshold(g_scores, s_scores)
         solved = {
             "general": metrics.fraction_solved(g_scores, threshold),
@@ -107,7 +104,6 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, results: pd.DataFrame) -> lis
         per_context = metrics.per_context_gap(g_scores, s_scores)
         varying = plan.spec.space().varying(plan.sets["train"].contexts)
         feature = varying[0] if varying else None
-        rows = interval_rows(cis)
         for row in rows:
             row["fraction at best return"] = solved[row["agent"]]
         text = [
@@ -121,10 +117,15 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, results: pd.DataFrame) -> lis
             f"within 1% of the observed return range, i.e. ≥ {threshold:g}): "
             f"general {solved['general']:.2f}, specialists {solved['specialists']:.2f}.",
         ]
+        if g.missing or s.missing:
+            text.append(
+                f"Computed on the cells that exist: general {g.cells_note()}, specialists "
+                f"{s.cells_note()}; the gap and the probability use the contexts both have."
+            )
         figures = [
             figure(
                 f"optgap-ecdf-{variant}",
-                plots.ecdf({"general": g_scores, "specialists": s_scores}, title="Return eCDF"),
+                plots.ecdf({"general": g.values, "specialists": s.values}, title="Return eCDF"),
                 "eCDF of returns of the general agent and the specialists",
             ),
             figure(
@@ -134,7 +135,8 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, results: pd.DataFrame) -> lis
             ),
         ]
         if feature is not None:
-            values = np.asarray(getattr(plan.sets["train"].contexts, feature))
+            tested = np.asarray([c for _, c in g.contexts], dtype=int)
+            values = np.asarray(getattr(plan.sets["train"].contexts, feature))[tested]
             figures.append(
                 figure(
                     f"optgap-per-context-{variant}",

@@ -16,6 +16,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from contextrl.context.distributions import draw
 from contextrl.experiments.spec import CommonSpec
@@ -69,6 +70,26 @@ class Plan:
     sets: dict[str, ContextSet]
     trials: list[Trial]
     chunks: list[list[int]]
+
+
+TRIAL_COLUMNS = ("trial", "kind", "variant", "seed", "train_set")
+
+
+def trial_columns(trial: Trial) -> dict[str, Any]:
+    """The columns that name a trial in every results table (results, evaluations, absent rows)."""
+    values = (trial.id, trial.kind, trial.variant, trial.seed, trial.train_set)
+    return dict(zip(TRIAL_COLUMNS, values, strict=True))
+
+
+def context_columns(test: ContextSet, names: Sequence[str]) -> dict[str, Any]:
+    """The columns that name each context of ``test`` in a results table: the set, the index in it,
+    every feature (``ctx.NAME``) and the set's labels."""
+    return {
+        "test_set": test.name,
+        "context_index": np.arange(len(test)),
+        **{f"ctx.{n}": np.asarray(getattr(test.contexts, n)) for n in names},
+        **{k: list(v) for k, v in test.labels.items()},
+    }
 
 
 def trial_key(seed: int, trial_id: str):

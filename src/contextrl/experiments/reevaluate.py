@@ -20,7 +20,14 @@ import pandas as pd
 
 from contextrl.context.distributions import draw
 from contextrl.experiments.analyze import build_report
-from contextrl.experiments.protocols import expand, stack_sets, trial_key
+from contextrl.experiments.protocols import (
+    ContextSet,
+    context_columns,
+    expand,
+    stack_sets,
+    trial_columns,
+    trial_key,
+)
 from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import SpecError, _check_int, distribution_to_yaml
 from contextrl.experiments.trials import host_context_input, host_returns
@@ -70,6 +77,7 @@ def evaluate_run(
         num_contexts,
         jax.random.fold_in(jax.random.key(spec.seed), EVAL_KEY),
     )
+    tested = ContextSet(name, contexts)
     plan = expand(spec)
     if not plan.trials:
         raise SpecError(
@@ -114,17 +122,8 @@ def evaluate_run(
             frames.append(
                 pd.DataFrame(
                     {
-                        "trial": trial.id,
-                        "kind": trial.kind,
-                        "variant": trial.variant,
-                        "seed": trial.seed,
-                        "train_set": trial.train_set,
-                        "test_set": name,
-                        "context_index": np.arange(num_contexts),
-                        **{
-                            f"ctx.{n}": np.asarray(getattr(contexts, n))
-                            for n in env.context_space.names
-                        },
+                        **trial_columns(trial),
+                        **context_columns(tested, env.context_space.names),
                         "return": returns[row].astype(np.float64),
                         "episodes": episodes,
                         "contexts": _describe(resolved),

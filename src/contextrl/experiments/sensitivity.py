@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from contextrl.analysis import plots
+from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.context.features import ContextError
-from contextrl.experiments.analyze import figure, training_figure
+from contextrl.experiments.analyze import figure, natural_key, return_lines, training_figure
 from contextrl.experiments.protocols import ContextSet, Plan, grid
 from contextrl.experiments.spec import (
     CommonSpec,
@@ -140,40 +140,38 @@ def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
     return sets, grid(spec, "default", "default", "scaled")
 
 
-def magnitude_lines(results: pd.DataFrame) -> dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
-    """Per feature: {variant: (magnitudes, returns shaped seeds × magnitudes)}; the one default
-    evaluation is every feature's A = 1 point."""
-    default = results[results["feature"] == DEFAULT_LABEL]
+def magnitude_lines(
+    cells: pd.DataFrame, label: str = "variant"
+) -> dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """Per feature: {label: (magnitudes, returns shaped seeds × magnitudes)}, from the score cells
+    (``label`` names the column that tells the lines apart); the one default evaluation is every
+    feature's A = 1 point."""
+    default = cells[cells["feature"] == DEFAULT_LABEL]
     out = {}
-    for feature in [f for f in results["feature"].unique() if f != DEFAULT_LABEL]:
-        rows = pd.concat([results[results["feature"] == feature], default])
-        lines = {}
-        for variant, group in rows.groupby("variant", sort=False):
-            wide = group.pivot_table(
-                index="seed", columns="magnitude", values="return", aggfunc="mean"
-            ).dropna(axis=1)
-            lines[variant] = (wide.columns.to_numpy(float), wide.to_numpy(float))
-        out[feature] = lines
+    for feature in [f for f in cells["feature"].unique() if f != DEFAULT_LABEL]:
+        rows = pd.concat([cells[cells["feature"] == feature], default])
+        out[feature] = return_lines(rows, "magnitude", rows[label])
     return out
 
 
-def _sections(spec: SensitivitySpec, plan: Plan, results: pd.DataFrame, curves) -> list[Section]:
-    default_return = float(results.loc[results["feature"] == DEFAULT_LABEL, "return"].mean())
-    by_feature = magnitude_lines(results)
+def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
+    by_feature = magnitude_lines(cells)
     rows = []
     for feature, lines in by_feature.items():
-        x, runs = next(iter(lines.values()))
-        means = dict(zip(x, runs.mean(axis=0), strict=True))
-        worst = min(means, key=means.get)
-        rows.append(
-            {
-                "feature": feature,
-                "return at A=1 (default context)": default_return,
-                "worst A": worst,
-                "return at worst A": means[worst],
-                "mean over A": float(np.mean(list(means.values()))),
-            }
-        )
+        for variant, (x, runs) in lines.items():
+            # every magnitude in x has a return (return_lines leaves out points without one)
+            means = dict(zip(x, np.ma.getdata(metrics.context_means(runs)), strict=True))
+            worst = min(means, key=means.get)
+            rows.append(
+                {
+                    "feature": feature,
+                    "variant": variant,
+                    "return at A=1 (default context)": means.get(1.0, np.nan),
+                    "worst A": worst,
+                    "return at worst A": means[worst],
+                    "mean over A": metrics.aggregate_mean(runs),
+                }
+            )
     figures = [
         figure(
             f"sensitivity-{feature}",
@@ -190,8 +188,8 @@ def _sections(spec: SensitivitySpec, plan: Plan, results: pd.DataFrame, curves) 
         for feature, lines in by_feature.items()
     ]
     returns = {
-        feature: {m: group["return"].to_numpy() for m, group in rows.groupby("magnitude")}
-        for feature, rows in results.groupby("feature", sort=False)
+        feature: {m: group["return"].dropna().to_numpy() for m, group in rows.groupby("magnitude")}
+        for feature, rows in cells.groupby("feature", sort=False)
         if feature != DEFAULT_LABEL
     }
     figures.append(
@@ -204,10 +202,12 @@ def _sections(spec: SensitivitySpec, plan: Plan, results: pd.DataFrame, curves) 
     if not curves.empty:
         figures.append(training_figure(spec, curves))
     _, skipped = spec.scaled_values()
+    ran = sorted(cells.loc[cells["return"].notna(), "variant"].unique(), key=natural_key)
     text = [
-        f"A {spec.agent} agent trained on the default context (hidden), evaluated once on the "
-        f"default context and with each feature scaled by A ∈ {list(spec.magnitudes)} × default; "
-        f"{spec.seeds} seeds × {spec.eval_episodes} episodes per context."
+        f"{spec.agent} agents trained on the default context, with context visibility "
+        f"{', '.join(ran)}, each evaluated once on the default context and with each feature "
+        f"scaled by A ∈ {list(spec.magnitudes)} × default; {spec.seeds} seeds × "
+        f"{spec.eval_episodes} episodes per context. A table row per feature and variant."
     ]
     if skipped:
         text.append(f"Outside the feature bounds, so not evaluated: {', '.join(skipped)}.")

@@ -23,7 +23,7 @@ import numpy as np
 import optax
 import pandas as pd
 
-from contextrl.analysis import plots
+from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import figure, natural_key
 from contextrl.experiments.runs import write_parquet
@@ -349,8 +349,10 @@ def _sections(spec: TabularSpec, results: pd.DataFrame) -> list[Section]:
     rows, gaps = [], {}
     groups = sorted(results.groupby("trial", sort=False), key=lambda item: natural_key(item[0]))
     for name, group in groups:
-        deterministic = float(np.mean(group["optimal_return"] - group["oblivious_return"]))
-        stochastic = float(np.mean(group["optimal_return"] - group["stochastic_return"]))
+        # exact returns: one "run" per context, so each policy's scores are a 1 × contexts matrix
+        optimal = group["optimal_return"].to_numpy()
+        deterministic = metrics.context_optimality_gap(group[["oblivious_return"]].T, optimal)
+        stochastic = metrics.context_optimality_gap(group[["stochastic_return"]].T, optimal)
         gaps[name] = deterministic
         rows.append(
             {

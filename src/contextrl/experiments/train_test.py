@@ -13,11 +13,15 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import interval_estimates
 from contextrl.analysis.report import Section
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
-from contextrl.experiments.analyze import curves_by_variant, figure, score_matrix
+from contextrl.experiments.analyze import (
+    curves_by_variant,
+    figure,
+    score_intervals,
+    score_matrices,
+)
 from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, grid
 from contextrl.experiments.spec import (
     CommonSpec,
@@ -199,35 +203,41 @@ def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-def _sections(spec: TrainTestSpec, plan: Plan, results: pd.DataFrame, curves: pd.DataFrame):
+def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
     train_box, _ = spec.boxes()
     (name_x, (x0, x1)), (name_y, (y0, y1)) = train_box.items()
     figures, rows = [], []
-    low, high = float(results["return"].min()), float(results["return"].max())
+    low, high = float(cells["return"].min()), float(cells["return"].max())
     for mode in spec.modes:
         train = plan.sets[f"train-{mode}"].contexts
         points = np.stack(
             [np.asarray(getattr(train, name_x)), np.asarray(getattr(train, name_y))], axis=1
         )
         for variant in spec.variants:
-            group = results[(results["kind"] == f"mode{mode}") & (results["variant"] == variant)]
-            if group.empty:
-                continue
-            cells = group.groupby("context_index").agg(
-                x=(f"ctx.{name_x}", "first"), y=(f"ctx.{name_y}", "first"), value=("return", "mean")
+            group = cells[(cells["kind"] == f"mode{mode}") & (cells["variant"] == variant)]
+            points = (
+                group.groupby("context")
+                .agg(
+                    x=(f"ctx.{name_x}", "first"),
+                    y=(f"ctx.{name_y}", "first"),
+                    value=("return", "mean"),
+                )
+                .dropna(subset=["value"])  # a context no seed has a return on has nothing to draw
             )
+            if points.empty:
+                continue
             figures.append(
                 figure(
                     f"heatmap-{mode}-{variant}",
                     plots.heatmap(
-                        cells["x"],
-                        cells["y"],
-                        cells["value"],
+                        points["x"],
+                        points["y"],
+                        points["value"],
                         xlabel=name_x,
                         ylabel=name_y,
                         regions=[(x0, x1, y0, y1)],
                         train_points=points,
-                        bins=int(np.sqrt(len(cells))),
+                        bins=int(np.sqrt(len(points))),
                         title=f"mode {mode}, {variant}",
                         vmin=low,
                         vmax=high,
@@ -240,18 +250,20 @@ def _sections(spec: TrainTestSpec, plan: Plan, results: pd.DataFrame, curves: pd
                 subset = group[group["region"] == region]
                 if subset.empty:
                     continue
-                interval = interval_estimates(
-                    {"r": score_matrix(subset)},
-                    {"mean": metrics.aggregate_mean},
+                scores = score_matrices(subset, subset["region"])
+                _, (row,) = score_intervals(
+                    scores,
                     reps=spec.bootstrap_reps,
                     seed=spec.seed,
-                )["r"]["mean"]
+                    metrics_={"mean": metrics.aggregate_mean},
+                )
                 rows.append(
                     {
                         "mode": mode,
                         "variant": variant,
                         "region": region,
-                        "mean return": str(interval),
+                        "mean return": row["mean"],
+                        "cells (seeds × contexts)": row["cells (seeds × contexts)"],
                     }
                 )
     text = [

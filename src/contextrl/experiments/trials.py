@@ -17,7 +17,13 @@ import jax
 import numpy as np
 import pandas as pd
 
-from contextrl.experiments.protocols import Plan, stack_sets, trial_key
+from contextrl.experiments.protocols import (
+    Plan,
+    context_columns,
+    stack_sets,
+    trial_columns,
+    trial_key,
+)
 
 TRAIN_EVAL_CONTEXTS = 16
 
@@ -216,15 +222,8 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
         test = plan.sets[trial.test_set]
         frame = pd.DataFrame(
             {
-                "trial": trial.id,
-                "kind": trial.kind,
-                "variant": trial.variant,
-                "seed": trial.seed,
-                "train_set": trial.train_set,
-                "test_set": trial.test_set,
-                "context_index": np.arange(len(test)),
-                **{f"ctx.{n}": np.asarray(getattr(test.contexts, n)) for n in space.names},
-                **{k: list(v) for k, v in test.labels.items()},
+                **trial_columns(trial),
+                **context_columns(test, space.names),
                 "return": returns[row].astype(np.float64),
                 "chunk_seconds": seconds,
             }

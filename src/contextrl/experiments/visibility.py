@@ -8,14 +8,13 @@ import dataclasses
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import interval_estimates, paired_bootstrap_ci
+from contextrl.analysis.intervals import paired_bootstrap_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
-    CI_METRICS,
     curves_by_variant,
     figure,
-    interval_rows,
-    score_matrix,
+    score_intervals,
+    score_matrices,
 )
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, Plan, draw_set, grid
 from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
@@ -62,28 +61,27 @@ def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
     return sets, grid(spec, "visibility", "train", "test")
 
 
-def _sections(spec: VisibilitySpec, plan: Plan, results: pd.DataFrame, curves: pd.DataFrame):
-    scores = {
-        variant: score_matrix(group) for variant, group in results.groupby("variant", sort=False)
-    }
-    cis = interval_estimates(scores, CI_METRICS, reps=spec.bootstrap_reps, seed=spec.seed)
+def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
+    scores = score_matrices(cells, cells["variant"])
+    cis, rows = score_intervals(scores, reps=spec.bootstrap_reps, seed=spec.seed)
     text = [
         f"{spec.agent} agents with context visibility {list(spec.variants)} trained on "
         f"{spec.num_train_contexts} contexts and tested on {spec.num_test_contexts} held-out contexts "
         f"({spec.seeds} seeds, {spec.eval_episodes} episodes each)."
     ]
-    rows = interval_rows(cis)
-    if "hidden" in scores:
-        for name, matrix in scores.items():
-            if name != "hidden" and matrix.shape[1] == scores["hidden"].shape[1]:
-                poi = paired_bootstrap_ci(
-                    matrix,
-                    scores["hidden"],
-                    metrics.probability_of_improvement,
-                    reps=spec.bootstrap_reps,
-                    seed=spec.seed,
-                )
-                text.append(f"P({name} > hidden) = {poi}")
+    hidden = scores.get("hidden")
+    for name, other in scores.items():
+        if hidden is None or name == "hidden" or not (hidden.present and other.present):
+            continue
+        poi = paired_bootstrap_ci(
+            other.matrix,
+            hidden.matrix,
+            metrics.probability_of_improvement,
+            reps=spec.bootstrap_reps,
+            seed=spec.seed,
+        )
+        text.append(f"P({name} > hidden) = {poi}")
+    returns = {name: s.values for name, s in scores.items() if s.present}
     figures = []
     if not curves.empty:
         steps, by_variant = curves_by_variant(curves)
@@ -95,8 +93,8 @@ def _sections(spec: VisibilitySpec, plan: Plan, results: pd.DataFrame, curves: p
             )
         )
     figures += [
-        figure("test-ecdf", plots.ecdf(scores, title="Test returns"), "eCDF of test returns"),
-        figure("test-histogram", plots.histograms(scores, title="Test returns"), "Test returns"),
+        figure("test-ecdf", plots.ecdf(returns, title="Test returns"), "eCDF of test returns"),
+        figure("test-histogram", plots.histograms(returns, title="Test returns"), "Test returns"),
         figure(
             "test-intervals",
             plots.intervals(cis, title="Test return (95% CI)"),
