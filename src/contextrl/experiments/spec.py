@@ -278,7 +278,10 @@ class CommonSpec:
         )
 
     def sections(self, plan, results, curves) -> list:
-        """The protocol's report sections from the finished results and training curves."""
+        """The protocol's report sections from its results and training curves; a protocol that
+        trains agents gets its results as score cells (``analyze.score_cells``: a row per agent
+        kind, variant, test set, context and seed, missing ones named), so every section of a
+        report reads the same numbers."""
         raise NotImplementedError
 
     def progress_row(self, run, plan, results, failures) -> dict:
