@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test run bench lint lock
+.PHONY: install system-deps test run bench docs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -11,7 +11,7 @@ SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-d
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade "pip>=24"
-	$(PY) -m pip install -q -c constraints.txt -e ".[all,test]"
+	$(PY) -m pip install -q -c constraints.txt -e ".[all,test,docs]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -41,6 +41,12 @@ run: install
 
 bench: install
 	$(PY) benchmarks/bench_envs.py
+
+# The documentation site (docs/, mkdocs.yml) into site/; --strict turns a broken link, a missing page or a
+# docstring the API reference cannot read into an error. The family pages' feature tables are generated
+# from the feature declarations during the build (tools/docs_hooks.py).
+docs: install
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
 
 lint: install
 	$(VENV)/bin/ruff check src tests benchmarks examples

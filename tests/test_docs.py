@@ -1,0 +1,30 @@
+"""The documentation site's Python blocks run as written: each page under docs/ runs its blocks in
+order, in one namespace of its own (Sybil parses them, as test_readme.py does for the README; a block that
+starts with ``>>>`` is a doctest), so a stale snippet fails the suite. The pages' ``contextrl run`` lines
+are checked in test_readme_commands.py; `make docs` builds the site with ``mkdocs build --strict``."""
+
+import doctest
+from pathlib import Path
+
+import pytest
+from sybil import Sybil
+from sybil.parsers.markdown import PythonCodeBlockParser
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+PARSER = PythonCodeBlockParser(doctest_optionflags=doctest.NORMALIZE_WHITESPACE)
+PAGES = sorted(
+    path
+    for path in DOCS.rglob("*.md")
+    if list(Sybil(parsers=[PARSER]).parse(path))  # pages without Python blocks have nothing to run
+)
+
+
+def test_the_site_has_python_blocks():
+    assert len(PAGES) >= 10, PAGES
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
+def test_page_python_blocks_run(page, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # blocks that write files (checkpoints, GIFs) write them here
+    for example in Sybil(parsers=[PARSER]).parse(page):  # a failure names the page's line
+        example.evaluate()

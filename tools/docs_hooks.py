@@ -1,0 +1,117 @@
+"""MkDocs hooks (``hooks:`` in mkdocs.yml): the family pages' feature tables are generated from the
+feature declarations at every build, so they cannot drift from the code.
+
+A page writes ``<!-- contextrl:features FAMILY -->`` on a line of its own; the build replaces it with one
+section per environment of that family (``crl.spec(id).family``): its one-line description, gymnasium
+id, CARL name, spaces and time limit, the feature table (default, bounds, unit, what the feature
+affects, meaning, the aliases: CARL's and the paper's names) and the coherence rules its contexts must
+satisfy. ``<!-- contextrl:environments -->`` becomes the summary table of every registered environment.
+The same functions write ``docs/environments.md`` (``contextrl docs``).
+
+``<!-- contextrl:config MODULE.CLASS -->`` becomes a table of a config dataclass: each field, its
+default and the docstring written under it in the source, so the agents page lists every
+hyper-parameter as the code declares it.
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import importlib
+import inspect
+import re
+import textwrap
+
+MARKER = re.compile(r"^<!-- contextrl:(features|environments|config)(?: ([\w.]+))? -->$", re.M)
+
+
+def family_markdown(family: str) -> str:
+    """One section per registered environment of ``family``, from the declarations."""
+    import contextrl as crl
+    from contextrl.cli import _space_label, feature_rows, markdown_table
+
+    ids = [env_id for env_id in crl.registered() if crl.spec(env_id).family == family]
+    if not ids:
+        raise ValueError(f"no registered environment has the family {family!r}")
+    parts = []
+    for env_id in ids:
+        env_spec = crl.spec(env_id)
+        env = env_spec.factory()
+        description = (type(env).__doc__ or "").strip().splitlines()[0]
+        carl = ", ".join(f"`{alias}`" for alias in env_spec.aliases) or "none"
+        parts += [
+            f"### {env_id}",
+            "",
+            description,
+            "",
+            f"gymnasium id `contextrl/{env_id}-v0` · CARL name {carl} · "
+            f"{'host' if env_spec.host else 'JAX'} · action {_space_label(env.action_space)} · "
+            f"observation {_space_label(env.base_observation_space)} · "
+            f"time limit {env.default_max_steps} steps",
+            "",
+            markdown_table(feature_rows(env.context_space)),
+            "",
+        ]
+        if env.context_space.rules:
+            parts += ["Contexts must also satisfy (checked on every context and every spec):", ""]
+            parts += [f"- `{rule.requirement}`: {rule.why}" for rule in env.context_space.rules]
+            parts.append("")
+        close = getattr(env, "close", None)
+        if env_spec.host and close is not None:
+            close()
+    return "\n".join(parts)
+
+
+def environments_table() -> str:
+    from contextrl.cli import environment_rows, markdown_table
+
+    return markdown_table(environment_rows())
+
+
+def field_docstrings(cls: type) -> dict[str, str]:
+    """The string literal written under each annotated field of ``cls``'s class body."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    docs = {}
+    for statement, following in zip(body, body[1:], strict=False):
+        if (
+            isinstance(statement, ast.AnnAssign)
+            and isinstance(statement.target, ast.Name)
+            and isinstance(following, ast.Expr)
+            and isinstance(following.value, ast.Constant)
+            and isinstance(following.value.value, str)
+        ):
+            docs[statement.target.id] = " ".join(following.value.value.split())
+    return docs
+
+
+def config_table(path: str) -> str:
+    """A Markdown table of the config dataclass at ``module.Class``: field, default, meaning."""
+    from contextrl.cli import markdown_table
+
+    module, _, name = path.rpartition(".")
+    cls = getattr(importlib.import_module(module), name)
+    docs = field_docstrings(cls)
+    rows = []
+    for field in dataclasses.fields(cls):
+        if field.default is not dataclasses.MISSING:
+            default = f"`{field.default!r}`"
+        elif field.default_factory is not dataclasses.MISSING:
+            default = f"`{field.default_factory()!r}`"
+        else:
+            default = "(required)"
+        rows.append({"field": f"`{field.name}`", "default": default, "meaning": docs.get(field.name, "")})
+    missing = [row["field"] for row in rows if not row["meaning"]]
+    if missing:
+        raise ValueError(f"{path}: fields without a docstring: {', '.join(missing)}")
+    return markdown_table(rows)
+
+
+def on_page_markdown(markdown: str, page, config, files) -> str:
+    def replace(match: re.Match) -> str:
+        if match.group(1) == "environments":
+            return environments_table()
+        if match.group(1) == "config":
+            return config_table(match.group(2))
+        return family_markdown(match.group(2))
+
+    return MARKER.sub(replace, markdown)
