@@ -99,7 +99,9 @@ def config_table(path: str) -> str:
             default = f"`{field.default_factory()!r}`"
         else:
             default = "(required)"
-        rows.append({"field": f"`{field.name}`", "default": default, "meaning": docs.get(field.name, "")})
+        rows.append(
+            {"field": f"`{field.name}`", "default": default, "meaning": docs.get(field.name, "")}
+        )
     missing = [row["field"] for row in rows if not row["meaning"]]
     if missing:
         raise ValueError(f"{path}: fields without a docstring: {', '.join(missing)}")
