@@ -78,12 +78,12 @@ class Scores:
     with each missing cell as (seed, test set, context, why)."""
 
     matrix: np.ndarray
-    seeds: tuple
     contexts: tuple[tuple[str, Any], ...]
     missing: tuple[tuple[Any, str, Any, str], ...]
 
     @property
     def present(self) -> int:
+        """How many cells have a return: what every statistic of the agent is computed on."""
         return int(self.matrix.size - np.ma.count_masked(self.matrix))
 
     @property
@@ -129,12 +129,7 @@ def score_matrices(cells: pd.DataFrame, labels: pd.Series | None = None) -> dict
             for (test_set, context), absent in zip(columns, row, strict=True)
             if absent
         )
-        out[name] = Scores(
-            matrix if missing else matrix.data,
-            tuple(wide.index),
-            tuple(columns),
-            missing,
-        )
+        out[name] = Scores(matrix if missing else matrix.data, tuple(columns), missing)
     return out
 
 
