@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test run bench docs lint lock
+.PHONY: install system-deps test run bench docs docs-gifs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -47,6 +47,10 @@ bench: install
 # from the feature declarations during the build (tools/docs_hooks.py).
 docs: install
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+
+# Re-render the family pages' animations (docs/images/*.gif, committed) with `contextrl render`.
+docs-gifs: install
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(PY) tools/render_docs_gifs.py
 
 lint: install
 	$(VENV)/bin/ruff check src tests benchmarks examples

@@ -5,7 +5,8 @@ A page writes ``<!-- contextrl:features FAMILY -->`` on a line of its own; the b
 section per environment of that family (``crl.spec(id).family``): its one-line description, gymnasium
 id, CARL name, spaces and time limit, the feature table (default, bounds, unit, what the feature
 affects, meaning, the aliases: CARL's and the paper's names) and the coherence rules its contexts must
-satisfy. ``<!-- contextrl:environments -->`` becomes the summary table of every registered environment.
+satisfy, and the environment's animation when ``docs/images/<Id>.gif`` exists (``make docs-gifs`` renders
+them; see tools/render_docs_gifs.py). ``<!-- contextrl:environments -->`` becomes the summary table of every registered environment.
 The same functions write ``docs/environments.md`` (``contextrl docs``).
 
 ``<!-- contextrl:config MODULE.CLASS -->`` becomes a table of a config dataclass: each field, its
@@ -18,22 +19,38 @@ from __future__ import annotations
 import ast
 import dataclasses
 import importlib
+import importlib.util
 import inspect
+import posixpath
 import re
 import textwrap
+from pathlib import Path
 
 MARKER = re.compile(r"^<!-- contextrl:(features|environments|config)(?: ([\w.]+))? -->$", re.M)
 
 
-def family_markdown(family: str) -> str:
-    """One section per registered environment of ``family``, from the declarations."""
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def gif_grids() -> dict[str, tuple[str, int]]:
+    """The ``contextrl render --grid`` of each GIF that tools/render_docs_gifs.py renders."""
+    path = Path(__file__).with_name("render_docs_gifs.py")
+    spec = importlib.util.spec_from_file_location("render_docs_gifs", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.GIFS
+
+
+def family_markdown(family: str, page_dir: str = "families") -> str:
+    """One section per registered environment of ``family``, from the declarations; image links are
+    relative to ``page_dir``, the folder of the page under docs/."""
     import contextrl as crl
     from contextrl.cli import _space_label, feature_rows, markdown_table
 
     ids = [env_id for env_id in crl.registered() if crl.spec(env_id).family == family]
     if not ids:
         raise ValueError(f"no registered environment has the family {family!r}")
-    parts = []
+    parts, grids = [], gif_grids()
     for env_id in ids:
         env_spec = crl.spec(env_id)
         env = env_spec.factory()
@@ -49,9 +66,18 @@ def family_markdown(family: str) -> str:
             f"observation {_space_label(env.base_observation_space)} · "
             f"time limit {env.default_max_steps} steps",
             "",
-            markdown_table(feature_rows(env.context_space)),
-            "",
         ]
+        if (DOCS / "images" / f"{env_id}.gif").exists() and env_id in grids:
+            source = posixpath.relpath(f"images/{env_id}.gif", page_dir)
+            grid, steps = grids[env_id]
+            caption = f"{env_id}, {steps} random steps under {grid.replace(',', ', ')}"
+            parts += [
+                f"![{caption}]({source})",
+                "",
+                f"*`contextrl render {env_id} --grid {grid}`*",
+                "",
+            ]
+        parts += [markdown_table(feature_rows(env.context_space)), ""]
         if env.context_space.rules:
             parts += ["Contexts must also satisfy (checked on every context and every spec):", ""]
             parts += [f"- `{rule.requirement}`: {rule.why}" for rule in env.context_space.rules]
@@ -114,6 +140,6 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
             return environments_table()
         if match.group(1) == "config":
             return config_table(match.group(2))
-        return family_markdown(match.group(2))
+        return family_markdown(match.group(2), posixpath.dirname(page.file.src_uri))
 
     return MARKER.sub(replace, markdown)
