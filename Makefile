@@ -39,8 +39,9 @@ test: system-deps install
 run: install
 	$(VENV)/bin/contextrl run quickstart
 
+# The environment speed tables; also written as Markdown where the docs' benchmarks page includes them.
 bench: install
-	$(PY) benchmarks/bench_envs.py
+	$(PY) benchmarks/bench_envs.py --markdown benchmarks/results/envs.md
 
 # The documentation site (docs/, mkdocs.yml) into site/; --strict turns a broken link, a missing page or a
 # docstring the API reference cannot read into an error. The family pages' feature tables are generated

@@ -1,15 +1,22 @@
 """Steps per second of batched contextual environments, every copy with its own context.
 
-    python benchmarks/bench_envs.py [--gymnax] [--quick]
+    python benchmarks/bench_envs.py [--gymnax] [--quick] [--markdown FILE]
 
 Prints CartPole at batch sizes 1 … 65,536, the other classic-control environments at 4,096, and the cost
 of choosing a new context at every reset (a context set with round robin, or resampling from a
 distribution) against fixed per-copy contexts. ``--gymnax`` also measures gymnax's CartPole in the same
 loop, in a separate virtual environment (.venv-gymnax, built on first use), and prints the ratio.
+``--markdown FILE`` also writes the tables as Markdown, headed by the date, the machine, its load and the
+command: `make bench` writes benchmarks/results/envs.md, which the documentation's benchmarks page
+includes.
 """
 
 import argparse
+import datetime
+import os
 import pathlib
+import platform
+import shlex
 import subprocess
 import sys
 
@@ -97,12 +104,51 @@ def gymnax_rate(copies: int, steps: int, devices: int, batched: bool = False) ->
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def machine() -> str:
+    """The CPU's model name and core count, as the benchmarks page states them."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{model}, {CORES} core(s)"
+
+
+def load() -> str:
+    try:
+        return f"{os.getloadavg()[0]:.1f}"
+    except OSError:
+        return "unknown"
+
+
+def markdown(command: str, start_load: str, steps: int, sections) -> str:
+    """The measured tables as Markdown, headed by when, where and how they were measured."""
+    lines = [
+        f"Measured {datetime.date.today().isoformat()} with `{command}` on {machine()}, load average "
+        f"{start_load} at the start and {load()} at the end; jax {jax.__version__} on "
+        f"{jax.devices()[0].platform}, {steps} random steps per copy (four times as many below 64 "
+        "copies).",
+    ]
+    for title, header, rows in sections:
+        lines += ["", f"**{title}**", "", "| " + " | ".join(header) + " |"]
+        lines.append("|" + "|".join(" --- " for _ in header) + "|")
+        lines += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gymnax", action="store_true", help="also measure gymnax CartPole")
     parser.add_argument("--quick", action="store_true", help="fewer batch sizes and steps")
+    parser.add_argument("--markdown", metavar="FILE", help="also write the tables as Markdown")
     args = parser.parse_args()
+    command = shlex.join(["python", "benchmarks/bench_envs.py", *sys.argv[1:]])
+    start_load = load()
     steps = 200 if args.quick else 1000
+    sizes_rows, env_rows, switch_rows, gymnax_rows = [], [], [], []
     print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {steps} random steps per copy\n")
 
     cartpole = crl.make("CartPole")
@@ -112,15 +158,19 @@ def main() -> None:
     for n in sizes:
         compile_s, rate = measure(cartpole, n, steps if n >= 64 else steps * 4)
         print(f"{n:>8} {compile_s:>10.2f} {rate:>12.3g}")
+        sizes_rows.append((f"{n:,}", f"{compile_s:.2f}", f"{rate:.3g}"))
 
     if CORES > 1:
         compile_s, rate = measure(cartpole, 4096, steps, devices=CORES)
         print(f"{4096:>8} {compile_s:>10.2f} {rate:>12.3g}  split over {CORES} cores")
+        sizes_rows.append((f"4,096 split over {CORES} cores", f"{compile_s:.2f}", f"{rate:.3g}"))
 
     print("\nEvery environment at 4,096 copies")
     print(f"{'env':>22} {'steps/s':>12}")
     for env_id in [i for i in crl.registered("classic_control")]:
-        print(f"{env_id:>22} {measure(crl.make(env_id), 4096, steps)[1]:>12.3g}")
+        rate = measure(crl.make(env_id), 4096, steps)[1]
+        print(f"{env_id:>22} {rate:>12.3g}")
+        env_rows.append((env_id, f"{rate:.3g}"))
 
     print("\nContext switch at reset (CartPole, 4,096 copies)")
     fixed = measure(cartpole, 4096, steps)[1]
@@ -134,6 +184,7 @@ def main() -> None:
     ]
     for label, rate in rows:
         print(f"{label:>28} {rate:>12.3g} steps/s  ({rate / fixed:.2f} × fixed)")
+        switch_rows.append((label, f"{rate:.3g}", f"{rate / fixed:.2f}"))
 
     if args.gymnax:
         print("\ngymnax CartPole in the same loop, 4,096 copies each with its own pole length")
@@ -144,6 +195,14 @@ def main() -> None:
                 f"{devices} device(s), per-copy loop: gymnax {theirs:.3g} steps/s, contextrl "
                 f"{ours:.3g} steps/s, contextrl / gymnax = {ours / theirs:.2f}"
             )
+            gymnax_rows.append(
+                (
+                    f"per-copy loop, {devices} device(s)",
+                    f"{theirs:.3g}",
+                    f"{ours:.3g}",
+                    f"{ours / theirs:.2f}",
+                )
+            )
         own = crl.sample(cartpole, LENGTHS, 4096, KEY)
         ours = contextual_rate(cartpole, 4096, steps, own)
         theirs = gymnax_rate(4096, steps, 1, batched=True)
@@ -151,6 +210,41 @@ def main() -> None:
             f"batched core (ContextualEnv.step_copies vs vmap of gymnax): gymnax {theirs:.3g} "
             f"steps/s, contextrl {ours:.3g} steps/s, contextrl / gymnax = {ours / theirs:.2f}"
         )
+        gymnax_rows.append(
+            (
+                "batched core (`step_copies`) vs gymnax's vmap",
+                f"{theirs:.3g}",
+                f"{ours:.3g}",
+                f"{ours / theirs:.2f}",
+            )
+        )
+
+    if args.markdown:
+        sections = [
+            (
+                "CartPole, every copy its own pole length (`jit(vmap(env.step))`, a key per copy per step)",
+                ("copies", "compile s", "steps/s"),
+                sizes_rows,
+            ),
+            ("Every classic-control environment at 4,096 copies", ("env", "steps/s"), env_rows),
+            (
+                "Choosing the context at every reset (`ContextualEnv.step_copies`, CartPole, 4,096 copies)",
+                ("contexts", "steps/s", "× fixed"),
+                switch_rows,
+            ),
+        ]
+        if gymnax_rows:
+            sections.append(
+                (
+                    "gymnax 1.0.1's CartPole in the same loops, 4,096 copies",
+                    ("loop", "gymnax steps/s", "contextrl steps/s", "contextrl / gymnax"),
+                    gymnax_rows,
+                )
+            )
+        out = pathlib.Path(args.markdown)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(markdown(command, start_load, steps, sections))
+        print(f"\nwrote {out}")
 
 
 if __name__ == "__main__":

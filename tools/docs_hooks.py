@@ -11,7 +11,8 @@ The same functions write ``docs/environments.md`` (``contextrl docs``).
 
 ``<!-- contextrl:config MODULE.CLASS -->`` becomes a table of a config dataclass: each field, its
 default and the docstring written under it in the source, so the agents page lists every
-hyper-parameter as the code declares it.
+hyper-parameter as the code declares it. On the rendered pages, Sphinx roles in docstrings
+(:func:`sample`) are shown as plain code.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ import re
 import textwrap
 from pathlib import Path
 
+# Docstrings cross-reference with Sphinx roles (:func:`sample`); the API pages show just the code.
+SPHINX_ROLE = re.compile(r":(?:py:)?(?:class|func|meth|attr|mod|data|exc|obj):(?=<code>)")
 MARKER = re.compile(r"^<!-- contextrl:(features|environments|config)(?: ([\w.]+))? -->$", re.M)
 
 
@@ -143,3 +146,7 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         return family_markdown(match.group(2), posixpath.dirname(page.file.src_uri))
 
     return MARKER.sub(replace, markdown)
+
+
+def on_page_content(html: str, page, config, files) -> str:
+    return SPHINX_ROLE.sub("", html)
