@@ -29,12 +29,10 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
 
 @pytest.fixture(scope="module")
 def pb2_runs(tmp_path_factory):
-    """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. The runs
-    share one JAX compilation cache (when this test starts Ray, its workers read the variable), so
-    the second run does not compile again."""
+    """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. Ray's
+    workers inherit the suite's JAX compilation cache (conftest.py), so the second run loads the
+    programs the first compiled."""
     pytest.importorskip("ray")
-    patch = pytest.MonkeyPatch()
-    patch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path_factory.mktemp("jax-cache")))
     runs = []
     for name in ("first", "second"):
         out = tmp_path_factory.mktemp("hpo") / name
@@ -46,7 +44,6 @@ def pb2_runs(tmp_path_factory):
         argv += ["--max-steps", "50", "--episodes", "2"]
         assert commands_main(argv) == 0
         runs.append(out)
-    patch.undo()
     return runs
 
 
