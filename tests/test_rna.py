@@ -4,6 +4,7 @@ context feature acts, bad data and ids are refused, and gymnasium's faces work."
 from __future__ import annotations
 
 import importlib.resources
+import itertools
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ pytest.importorskip("RNA")
 import gymnasium  # noqa: E402
 import jax  # noqa: E402
 import learning  # noqa: E402  (tests/learning.py: the runs shared with the margin script)
+import RNA  # noqa: E402
 
 import contextrl  # noqa: E402, F401  (registers the gymnasium ids)
 from contextrl.context.features import ContextError  # noqa: E402
@@ -28,6 +30,7 @@ from contextrl.envs.rna import design as design_module  # noqa: E402
 from contextrl.envs.rna.targets import count_multiloops  # noqa: E402
 
 HAIRPIN = "(((((......)))))"  # Eterna100 v2 target 1, "Simple Hairpin"
+HAIRPIN_ONLY = {"target_id_first": 1, "target_id_last": 1}
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +54,8 @@ def actions_writing(env: RnaDesign, sequence: str, **context) -> list[int]:
     return env.actions_for(sequence)
 
 
-def test_eterna100_v2_sample_solutions_solve_their_targets(env):
+def test_eterna100_v2_sample_solutions_solve_their_targets():
+    env = RnaDesign(wobble_pairs=True)  # most sample solutions hold GU pairs
     solved = []
     for target_id in range(1, 101):
         target = env.targets.get("eterna100_v2", target_id)
@@ -79,29 +83,140 @@ def test_a_wrong_design_gets_the_hand_computed_reward(env):
     assert reward == pytest.approx((1 - 10 / 16) ** 2)
 
 
-def test_mutation_threshold_switches_the_local_improvement_and_it_is_seeded(env):
+PRION = {"target_id_first": 3, "target_id_last": 3}  # "((((((.((((....))))))).)))..........", 36 nt
+PRION_DESIGNS = {  # Watson–Crick designs of Eterna100 v2 target 3, by the distance of their own fold
+    4: "UCCAGGUUUUUAACCAAAACCUUGGAUCGGUACGCU",  # LEARNA's improvement solves it
+    5: "GGAGAUUACGUGUUUACGUAUCUUCCCACCGCAGGC",  # LEARNA's improvement would reach 2
+    6: "CGUUAAUUACUCCUCAGUAUUACACGGGAAUUUGUC",
+}
+
+
+def learna_reward(sequence: str, target: str, threshold: float, exponent: float) -> float:
+    """LEARNA's terminal reward from its definition (Runge et al. 2019; automl/learna's
+    environment.py): fold the design (ViennaRNA MFE) and take the Hamming distance d to the target;
+    when 0 < d < threshold, d becomes the least distance over every A/C/G/U assignment to the sites
+    where the fold differs (each site on its own); the reward is (1 − d/n)^exponent."""
+
+    def distance(candidate: str) -> int:
+        return sum(a != b for a, b in zip(RNA.fold(candidate)[0], target, strict=True))
+
+    d = distance(sequence)
+    if 0 < d < threshold:
+        folded = RNA.fold(sequence)[0]
+        wrong = [i for i in range(len(target)) if folded[i] != target[i]]
+        for bases in itertools.product("ACGU", repeat=len(wrong)):
+            mutated = list(sequence)
+            for site, base in zip(wrong, bases, strict=True):
+                mutated[site] = base
+            d = min(d, distance("".join(mutated)))
+    return (1 - d / len(target)) ** exponent
+
+
+@pytest.mark.parametrize(
+    "own_distance, threshold", [(4, 5.0), (5, 5.0), (6, 5.0), (5, 6.0), (4, 4.0)]
+)
+def test_reward_is_learnas_below_at_and_above_the_mutation_threshold(env, own_distance, threshold):
+    """Designs whose own fold is at d = threshold − 1, threshold and threshold + 1 (LEARNA's default
+    threshold 5 and two others): the reward equals LEARNA's, so improvement runs only when d is
+    strictly below the threshold, and then exhausts every base at the mismatched sites."""
+    sequence = PRION_DESIGNS[own_distance]
+    target = env.targets.get("eterna100_v2", 3).structure
+    assert sum(a != b for a, b in zip(fold(sequence), target, strict=True)) == own_distance
+    actions = actions_writing(env, sequence, **PRION)
+    reward, info = design(env, actions, mutation_threshold=threshold, **PRION)
+    assert reward == pytest.approx(learna_reward(sequence, target, threshold, 1.0), abs=1e-12)
+    improved = own_distance < threshold
+    expected = {4: 0, 5: 2, 6: 6}[own_distance] if improved else own_distance
+    assert info["hamming_distance"] == expected
+    assert fold(info["sequence"]) == info["structure"]
+    assert (info["sequence"] != sequence) == improved and (info["folds"] > 1) == improved
+    if own_distance == 5 and improved:  # no design of distance < 2 among the 4^5 combinations
+        assert info["folds"] == 4**5  # the design's own fold, then the 1,023 others
+
+
+def test_actions_are_learnas_four_unless_wobble_pairs_are_asked_for():
+    """LEARNA's 4 actions: a uniform policy places each base with probability 1/4 at an unpaired
+    site and each Watson–Crick pair with 1/4 at a paired one; ``wobble_pairs`` adds GU and UG."""
+    env = RnaDesign()
+    assert env.action_space.n == 4
+    for action, pair in enumerate(["AU", "CG", "GC", "UA"]):
+        _, info = design(env, [action] * 11, mutation_threshold=0.0, **HAIRPIN_ONLY)
+        assert (
+            info["sequence"] == pair[0] * 5 + pair[0] * 6 + pair[1] * 5
+        )  # hairpin: 5 pairs, 6 loop
+    env.reset_physics(env.context(target_id_last=1), np.random.default_rng(0))
+    with pytest.raises(
+        ValueError, match=r"action must be an integer in \[0, 4\) \(wobble_pairs=False\)"
+    ):
+        env.step_physics(4)
+    with pytest.raises(ValueError, match=r"puts 'UG' there; placeable pairs are .*adds GU, UG"):
+        env.actions_for("UAGGUGAAAAAGUCUG")
+    wobble = RnaDesign(wobble_pairs=True)
+    assert wobble.action_space.n == 6
+    _, info = design(wobble, [4] * 5 + [5] * 6, mutation_threshold=0.0, **HAIRPIN_ONLY)
+    assert info["sequence"] == "GGGGGUUUUUUUUUUU"
+
+
+def test_options_are_checked_naming_the_value_and_the_choices():
+    with pytest.raises(
+        ValueError, match=r"improvement must be one of \['exhaustive', 'random'\], got 'greedy'"
+    ):
+        RnaDesign(improvement="greedy")
+    with pytest.raises(ValueError, match=r"improvement='random' needs a fold budget"):
+        RnaDesign(improvement="random")
+    with pytest.raises(ValueError, match=r"improvement_folds must be None .* got -1"):
+        RnaDesign(improvement_folds=-1)
+    with pytest.raises(ValueError, match=r"wobble_pairs must be True or False, got 'yes'"):
+        RnaDesign(wobble_pairs="yes")
+
+
+def test_the_exhaustive_improvement_keeps_a_fold_budget_and_refuses_an_endless_threshold(env):
+    """Without a budget a threshold above 9 could ask for 4^9 folds an episode: refused at reset,
+    naming the value and the ways out; with ``improvement_folds`` the search stops at the budget."""
+    with pytest.raises(
+        ContextError, match=r"mutation_threshold=10 lets .* up to 4\^9 .* at most 9"
+    ):
+        env.reset_physics(env.context(mutation_threshold=10.0), np.random.default_rng(0))
+    budget = RnaDesign(improvement_folds=20)
+    actions = actions_writing(budget, PRION_DESIGNS[4], **PRION)
+    _, info = design(budget, actions, mutation_threshold=10.0, **PRION)
+    assert info["folds"] == 1 + 20 and info["hamming_distance"] > 0  # solved at fold 62 unbounded
+    random_search = RnaDesign(improvement="random", improvement_folds=5)
+    _, info = design(random_search, actions, mutation_threshold=10.0, **PRION)
+    assert 1 < info["folds"] <= 1 + 5
+
+
+def test_the_random_search_option_is_seeded_and_re_pairs_sites():
+    env = RnaDesign(improvement="random", improvement_folds=32, wobble_pairs=True)
     near = (
         "CAGGUGAAAAAGUCUG"  # a wobble pair U-G at the stem's end: folds to ((((........)))), d = 2
     )
     assert fold(near) == "((((........))))"
     one = {"target_id_first": 1, "target_id_last": 1}
     actions = actions_writing(env, near, **one)
-    reward, info = design(env, actions, mutation_threshold=1.9, **one)
+    reward, info = design(env, actions, mutation_threshold=2.0, **one)  # strict: d = 2 is not < 2
     assert info["folds"] == 1 and info["hamming_distance"] == 2 and info["sequence"] == near
     assert reward == pytest.approx(1 - 2 / 16)
-    reward, info = design(env, actions, seed=3, mutation_threshold=2.0, **one)
+    reward, info = design(env, actions, seed=3, mutation_threshold=2.5, **one)
     assert info["folds"] > 1 and info["sequence"] != near
     assert fold(info["sequence"]) == info["structure"]
     assert info["hamming_distance"] == sum(
         a != b for a, b in zip(info["structure"], HAIRPIN, strict=True)
     )
     assert info["hamming_distance"] < 2 and reward > 1 - 2 / 16
-    again = design(env, actions, seed=3, mutation_threshold=2.0, **one)[1]
+    pairs = {info["sequence"][i] + info["sequence"][15 - i] for i in range(5)}
+    assert pairs <= {"AU", "CG", "GC", "UA", "GU", "UG"}  # a mismatched pair gets a new pair
+    again = design(env, actions, seed=3, mutation_threshold=2.5, **one)[1]
     assert again == info  # the same seed, the same search
 
 
 def test_local_improvement_never_exceeds_its_fold_budget(monkeypatch):
-    env = RnaDesign(synthetic={"lengths": (16, 30), "min_multiloops": 0}, improvement_folds=7)
+    env = RnaDesign(
+        synthetic={"lengths": (16, 30), "min_multiloops": 0},
+        improvement="random",
+        improvement_folds=7,
+        wobble_pairs=True,
+    )
     calls = []
 
     def counting_fold(sequence: str) -> str:
@@ -299,6 +414,7 @@ def test_gymnasium_episode_reports_the_design_in_info():
     env = gymnasium.make(
         "contextrl/CARLRnaDesignEnv-v0",
         contexts={"dataset": "eterna100_v2", "target_id_first": 1, "target_id_last": 1},
+        wobble_pairs=True,  # the sample solution closes the stem with a GU pair
     )
     obs, info = env.reset(seed=0)
     assert info["target_id"] == 1 and env.observation_space.contains(obs)
@@ -387,15 +503,43 @@ def test_the_train_test_example_spec_is_valid_for_rna_design():
 
 
 def test_targets_come_from_the_seed_given_to_reset():
+    """Rfam-Taneda's 29 ids: the first 29 resets after ``reset(seed=...)`` are one epoch (each id
+    once), in an order the seed fixes."""
     env = gymnasium.make("contextrl/RnaDesign-v0", contexts={"dataset": "rfam_taneda"})
 
     def drawn(seed: int) -> list[int]:
         ids = [env.reset(seed=seed)[1]["target_id"]]
-        return ids + [env.reset()[1]["target_id"] for _ in range(7)]
+        return ids + [env.reset()[1]["target_id"] for _ in range(28)]
 
     first = drawn(5)
-    assert drawn(5) == first and drawn(6) != first and len(set(first)) > 3
+    assert drawn(5) == first and drawn(6) != first and sorted(first) == list(range(1, 30))
     env.close()
+
+
+def test_targets_are_shuffled_once_per_epoch_and_each_range_keeps_its_epoch(env):
+    """As LEARNA, an epoch takes every id of the range once, in a shuffled order, and the next
+    epoch reshuffles; a range's epoch goes on while other ranges' episodes come between."""
+    rng = np.random.default_rng(7)
+    everything = env.context(dataset="rfam_taneda")
+    ids = []
+    for _ in range(58):
+        env.reset_physics(everything, rng)
+        ids.append(env.target.id)
+    assert sorted(ids[:29]) == sorted(ids[29:]) == list(range(1, 30)) and ids[:29] != ids[29:]
+    ranges = {
+        "first ten": env.context(dataset="rfam_taneda", target_id_last=10),
+        "last ten": env.context(dataset="eterna100_v2", target_id_first=91),
+    }
+    seen = {name: [] for name in ranges}
+    for _ in range(10):
+        for name, context in ranges.items():
+            env.reset_physics(context, rng)
+            seen[name].append(env.target.id)
+    assert sorted(seen["first ten"]) == list(range(1, 11))
+    assert sorted(seen["last ten"]) == list(range(91, 101))
+    for first in range(1, 71):  # 70 ranges: only the latest MAX_EPOCHS epochs are remembered
+        env.reset_physics(env.context(target_id_first=first, target_id_last=first + 1), rng)
+    assert len(env._epochs) == design_module.MAX_EPOCHS
 
 
 def test_a_context_set_over_id_ranges_is_a_train_test_split():

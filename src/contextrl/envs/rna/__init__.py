@@ -1,6 +1,12 @@
 """The RNA design family on ViennaRNA (extra ``rna``: ``viennarna``, imported as ``RNA``)."""
 
-from contextrl.envs.rna.design import ACTION_PAIRS, CHANNELS, RnaDesign, RnaDesignContext
+from contextrl.envs.rna.design import (
+    ACTION_PAIRS,
+    CHANNELS,
+    IMPROVEMENTS,
+    RnaDesign,
+    RnaDesignContext,
+)
 from contextrl.envs.rna.targets import (
     DATASETS,
     SyntheticTargets,
@@ -15,6 +21,7 @@ __all__ = [
     "ACTION_PAIRS",
     "CHANNELS",
     "DATASETS",
+    "IMPROVEMENTS",
     "RnaDesign",
     "RnaDesignContext",
     "SyntheticTargets",

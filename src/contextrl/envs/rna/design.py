@@ -1,22 +1,35 @@
 """RnaDesign: the LEARNA task (Runge et al. 2019) as a contextual host environment on ViennaRNA.
 
 Given a target secondary structure in dot-bracket notation, the agent writes an RNA sequence left to
-right. At an unpaired site it places one base; at the opening site of a pair it places a Watson–Crick
-or wobble pair, which fills the closing site too (closing sites are never visited). When the
-sequence is complete it is folded (ViennaRNA's minimum free energy structure) and the episode ends
-with reward ``(1 − d/n)^reward_exponent`` for the Hamming distance d between the folded and the
-target structure of length n. When ``0 < d ≤ mutation_threshold``, a local improvement runs first:
-seeded single-site mutations of the mismatched sites (a mismatched paired site gets a new pair),
-each kept when it does not increase d, at most ``improvement_folds`` folds, stopping once d = 0.
+right. At an unpaired site it places one base (A, C, G or U: four actions); at the opening site of a
+pair it places a Watson–Crick pair (AU, CG, GC or UA), which fills the closing site too (closing
+sites are never visited). When the sequence is complete it is folded (ViennaRNA's minimum free
+energy structure) and the episode ends with reward ``(1 − d/n)^reward_exponent`` for the Hamming
+distance d between the folded and the target structure of length n. When ``0 < d < mutation_threshold``
+(strict, as LEARNA), LEARNA's local improvement runs first: every A/C/G/U combination at the d
+mismatched sites is folded (each site on its own: a paired site's partner is left as it is) and the
+design with the smallest distance is kept, stopping at d = 0. The strict bound is what keeps it
+affordable: 4^d − 1 folds at distance d (a threshold above ``MAX_EXHAUSTIVE_THRESHOLD`` is refused
+unless ``improvement_folds`` sets a budget).
 
 Which target an episode designs: the context names a data set (``dataset``) and a range of its
-1-based ids (``target_id_first`` … ``target_id_last``, 0 meaning its last id); each reset draws one id
-of the range uniformly from the episode's seeded generator. A context set over id ranges gives
-train/test splits, and a set of single-id contexts (first = last) any list of ids.
+1-based ids (``target_id_first`` … ``target_id_last``, 0 meaning its last id). As LEARNA, the range's
+ids are shuffled once per epoch and taken in that order, the order drawn from the generator
+``reset(seed=...)`` seeds (a new generator starts new epochs); each range of a context set keeps its
+own epoch. A context set over id ranges gives train/test splits, and a set of single-id contexts
+(first = last) any list of ids.
+
+Our extensions, off by default (LEARNA's task is the default): ``wobble_pairs=True`` adds the GU and
+UG pairs as actions 4 and 5 (at an unpaired site they place G and U again, so a uniform policy puts
+G and U there with probability 1/3 each); ``improvement="random"`` replaces the exhaustive search by
+a seeded random search that also re-pairs mismatched paired sites; ``improvement_folds`` caps the
+folds either search may spend per episode (the random search needs it).
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 import operator
 from pathlib import Path
 from typing import Any
@@ -40,7 +53,16 @@ from contextrl.envs.rna.targets import (
 
 ACTION_PAIRS = ("AU", "CG", "GC", "UA", "GU", "UG")  # the first four start with BASES' A, C, G, U
 """Action k places ``ACTION_PAIRS[k]`` at an opening site and its pairing site, its first base alone
-at an unpaired site (so actions 0–3 are A, C, G, U there; 4 and 5 repeat G and U)."""
+at an unpaired site (so actions 0–3 are A, C, G, U there). Only the first four are actions unless
+``wobble_pairs=True``; then 4 and 5 add GU and UG (and repeat G and U at unpaired sites)."""
+IMPROVEMENTS = ("exhaustive", "random")
+"""Local improvement searches: LEARNA's exhaustive one (the default) or our seeded random search."""
+MAX_EXHAUSTIVE_THRESHOLD = 9
+"""The largest ``mutation_threshold`` the exhaustive search takes without a fold budget: distances up
+to 8, so at most 4^8 = 65,536 folds in an episode (a threshold of 20 would allow 4^19)."""
+MAX_EPOCHS = 64
+"""Id ranges whose epoch the environment remembers; beyond that the oldest range's epoch restarts (a
+range's order holds one id per target: contexts sampled over many ranges must not grow without end)."""
 MAX_RADIUS = 32
 WINDOW = 2 * MAX_RADIUS + 1
 CHANNELS = ("unpaired", "opening", "closing", "outside")
@@ -56,7 +78,7 @@ class RnaDesignContext(ContextBase):
         0.0,
         1000.0,
         unit="sites",
-        doc="local improvement runs when the Hamming distance is at most this (0: never)",
+        doc="local improvement runs when the Hamming distance is below this (0 or 1: never)",
         affects=("reward",),
     )
     reward_exponent: float = feature(
@@ -98,13 +120,15 @@ class RnaDesign(HostEnv):
 
     Observation: the target around the current site, ``2 × 32 + 1`` sites one-hot over
     ``CHANNELS`` (flattened), sites beyond ``state_radius`` all zeros, so every radius fits one space.
-    Actions: ``Discrete(6)``, see ``ACTION_PAIRS``. ``info`` always holds ``dataset`` and
-    ``target_id``; the last step adds ``sequence``, ``structure`` (its fold), ``hamming_distance``,
-    ``solved`` and ``folds`` (the vector env puts them in ``info["final_info"]``).
+    Actions: ``Discrete(4)`` as LEARNA (``Discrete(6)`` with ``wobble_pairs``), see ``ACTION_PAIRS``.
+    ``info`` always holds ``dataset`` and ``target_id``; the last step adds ``sequence`` (after the
+    local improvement), ``structure`` (its fold), ``hamming_distance``, ``solved`` and ``folds`` (the
+    vector env puts them in ``info["final_info"]``).
 
     ``data_dir``: a folder of data files named as the shipped ones (see ``targets``); ``synthetic``: a
-    :class:`~contextrl.envs.rna.targets.SyntheticTargets` or a dict of its fields;
-    ``improvement_folds``: the local improvement's fold budget per episode.
+    :class:`~contextrl.envs.rna.targets.SyntheticTargets` or a dict of its fields; ``improvement``:
+    one of ``IMPROVEMENTS``; ``improvement_folds``: the local improvement's fold budget per episode
+    (None: none, exhaustive search only); ``wobble_pairs``: GU and UG as actions 4 and 5.
     """
 
     context_type = RnaDesignContext
@@ -114,21 +138,35 @@ class RnaDesign(HostEnv):
         self,
         data_dir: str | Path | None = None,
         synthetic: SyntheticTargets | dict | None = None,
-        improvement_folds: int = 32,
+        improvement: str = "exhaustive",
+        improvement_folds: int | None = None,
+        wobble_pairs: bool = False,
         render_size: tuple[int, int] = (200, 640),
     ):
         if isinstance(synthetic, dict):
             synthetic = SyntheticTargets(**synthetic)
         if synthetic is not None and not isinstance(synthetic, SyntheticTargets):
             raise TypeError(f"synthetic must be a SyntheticTargets or a dict, got {synthetic!r}")
-        if (
+        if improvement not in IMPROVEMENTS:
+            raise ValueError(
+                f"improvement must be one of {list(IMPROVEMENTS)}, got {improvement!r}"
+            )
+        if improvement_folds is not None and (
             isinstance(improvement_folds, bool)
             or not isinstance(improvement_folds, (int, np.integer))
             or not 0 <= improvement_folds <= 100_000
         ):
             raise ValueError(
-                f"improvement_folds must be an integer in [0, 100000], got {improvement_folds!r}"
+                "improvement_folds must be None (no budget) or an integer in [0, 100000], got "
+                f"{improvement_folds!r}"
             )
+        if improvement == "random" and improvement_folds is None:
+            raise ValueError(
+                "improvement='random' needs a fold budget: pass improvement_folds (e.g. 32); "
+                "the random search has no end of its own"
+            )
+        if not isinstance(wobble_pairs, (bool, np.bool_)):
+            raise ValueError(f"wobble_pairs must be True or False, got {wobble_pairs!r}")
         if len(render_size) != 2 or not all(
             isinstance(s, int) and 16 <= s <= 4096 for s in render_size
         ):
@@ -136,16 +174,20 @@ class RnaDesign(HostEnv):
                 f"render_size must be (height, width) ints in [16, 4096], got {render_size!r}"
             )
         self.targets = TargetSets(data_dir, synthetic)
-        self.improvement_folds = int(improvement_folds)
+        self.improvement = improvement
+        self.improvement_folds = None if improvement_folds is None else int(improvement_folds)
+        self.wobble_pairs = bool(wobble_pairs)
+        self.action_pairs = ACTION_PAIRS if wobble_pairs else ACTION_PAIRS[:4]
         self.render_size = tuple(render_size)
         self.default_max_steps = self.targets.max_length  # at most one action per site
-        self._action_space = gymnasium.spaces.Discrete(len(ACTION_PAIRS))
+        self._action_space = gymnasium.spaces.Discrete(len(self.action_pairs))
         self._observation_space = gymnasium.spaces.Box(
             0.0, 1.0, shape=(WINDOW * len(CHANNELS),), dtype=np.float32
         )
         self._offsets = np.arange(-MAX_RADIUS, MAX_RADIUS + 1)
         self.target: Target | None = None
         self._rng: np.random.Generator | None = None
+        self._epochs: dict[tuple[str, int, int], tuple[np.ndarray, int]] = {}
         self._result: dict[str, Any] | None = None
 
     # ---- HostEnv interface -------------------------------------------------------------------------
@@ -176,19 +218,48 @@ class RnaDesign(HostEnv):
             )
         return dataset, first, last
 
+    def _check_threshold(self, values: dict[str, float]) -> None:
+        """ContextError when the exhaustive search, without a fold budget, could not finish: a
+        ``mutation_threshold`` above ``MAX_EXHAUSTIVE_THRESHOLD``."""
+        threshold = values["mutation_threshold"]
+        if (
+            self.improvement == "exhaustive"
+            and self.improvement_folds is None
+            and threshold > MAX_EXHAUSTIVE_THRESHOLD
+        ):
+            raise ContextError(
+                f"mutation_threshold={threshold:g} lets the exhaustive local improvement fold up to "
+                f"4^{math.ceil(threshold) - 1} designs per episode; without a fold budget it takes "
+                f"at most {MAX_EXHAUSTIVE_THRESHOLD} (4^{MAX_EXHAUSTIVE_THRESHOLD - 1} folds): lower "
+                "it, or pass improvement_folds= (a budget) or improvement='random' to RnaDesign"
+            )
+
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:
         values = self.context_values(context)
         dataset, first, last = self.target_range(values)  # every check before anything changes
+        self._check_threshold(values)
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"{self.name}: rng must be a numpy.random.Generator, got {rng!r}")
-        self._begin(self.targets.get(dataset, int(rng.integers(first, last + 1))), values, rng)
+        if rng is not self._rng:  # reset(seed=...) made a new generator: new epochs from it
+            self._epochs, self._rng = {}, rng
+        self._begin(self.targets.get(dataset, self._next_id(dataset, first, last)), values)
         return self._observe()
 
-    def _begin(self, target: Target, values: dict[str, float], rng: np.random.Generator) -> None:
+    def _next_id(self, dataset: str, first: int, last: int) -> int:
+        """The next id of the range's epoch (LEARNA: shuffled once per epoch, taken in order)."""
+        key = (dataset, first, last)
+        order, position = self._epochs.pop(key, (None, 0))  # popped: re-added as the newest
+        if order is None or position == len(order):
+            order, position = first + self._rng.permutation(last - first + 1), 0
+        if len(self._epochs) >= MAX_EPOCHS:
+            del self._epochs[next(iter(self._epochs))]  # the range used longest ago
+        self._epochs[key] = (order, position + 1)
+        return int(order[position])
+
+    def _begin(self, target: Target, values: dict[str, float]) -> None:
         """Start designing ``target`` under checked context ``values``; precompute its observations'
         one-hot rows, padded with ``outside`` rows on both sides (one extra past the end)."""
         self.target = target
-        self._rng = rng
         self._threshold = values["mutation_threshold"]
         self._exponent = values["reward_exponent"]
         self._visible = (np.abs(self._offsets) <= int(values["state_radius"]))[:, None]
@@ -212,11 +283,13 @@ class RnaDesign(HostEnv):
             index = -1 if isinstance(action, (bool, np.bool_)) else operator.index(action)
         except TypeError:
             index = -1
-        if not 0 <= index < len(ACTION_PAIRS):
-            raise ValueError(f"{self.name}: action must be an integer in [0, 6), got {action!r}")
-        action = index
+        if not 0 <= index < len(self.action_pairs):
+            raise ValueError(
+                f"{self.name}: action must be an integer in [0, {len(self.action_pairs)}) "
+                f"(wobble_pairs={self.wobble_pairs}), got {action!r}"
+            )
         site = int(self._decision_sites[self._step])
-        pair = ACTION_PAIRS[action]
+        pair = self.action_pairs[index]
         self._sequence[site] = pair[0]
         partner = int(self.target.partners[site])
         if partner >= 0:
@@ -253,12 +326,14 @@ class RnaDesign(HostEnv):
                 actions.append(BASES.index(sequence[site]))  # the pair starting with that base
                 continue
             pair = sequence[site] + sequence[partner]
-            if pair not in ACTION_PAIRS:
+            if pair not in self.action_pairs:
+                wobble = "" if self.wobble_pairs else " (wobble_pairs=True adds GU, UG)"
                 raise ValueError(
                     f"{self.name}: sites {site + 1} and {partner + 1} pair in the target but the "
-                    f"sequence puts {pair!r} there; placeable pairs are {list(ACTION_PAIRS)}"
+                    f"sequence puts {pair!r} there; placeable pairs are "
+                    f"{list(self.action_pairs)}{wobble}"
                 )
-            actions.append(ACTION_PAIRS.index(pair))
+            actions.append(self.action_pairs.index(pair))
         return actions
 
     def _mismatches(self, structure: str) -> np.ndarray:
@@ -270,8 +345,9 @@ class RnaDesign(HostEnv):
         sequence = "".join(self._sequence)
         structure = fold(sequence)
         distance, folds = len(self._mismatches(structure)), 1
-        if 0 < distance <= self._threshold:
-            sequence, structure, distance, extra = self._improve(sequence, structure, distance)
+        if 0 < distance < self._threshold:  # strict, as LEARNA
+            improve = self._exhaustive if self.improvement == "exhaustive" else self._random_search
+            sequence, structure, distance, extra = improve(sequence, structure, distance)
             folds += extra
         self._result = {
             "sequence": sequence,
@@ -282,8 +358,36 @@ class RnaDesign(HostEnv):
         }
         return float((1.0 - distance / len(self.target)) ** self._exponent)
 
-    def _improve(self, sequence: str, structure: str, distance: int) -> tuple[str, str, int, int]:
-        """Seeded local search over the mismatched sites, within ``improvement_folds`` folds."""
+    def _exhaustive(
+        self, sequence: str, structure: str, distance: int
+    ) -> tuple[str, str, int, int]:
+        """LEARNA's local improvement: fold every A/C/G/U combination at the mismatched sites (all
+        but the design's own, already folded), keep the first of smallest distance, stop at 0 or
+        when ``improvement_folds`` (if set) are spent. (sequence, structure, distance, folds)."""
+        sites = self._mismatches(structure)
+        design = np.array(list(sequence))
+        best, folds = (sequence, structure, distance), 0
+        for bases in itertools.product(BASES, repeat=len(sites)):
+            if best[2] == 0 or folds == self.improvement_folds:
+                break
+            candidate = design.copy()
+            candidate[sites] = bases
+            candidate_sequence = "".join(candidate)
+            if candidate_sequence == sequence:
+                continue
+            candidate_structure = fold(candidate_sequence)
+            folds += 1
+            candidate_distance = len(self._mismatches(candidate_structure))
+            if candidate_distance < best[2]:
+                best = (candidate_sequence, candidate_structure, candidate_distance)
+        return (*best, folds)
+
+    def _random_search(
+        self, sequence: str, structure: str, distance: int
+    ) -> tuple[str, str, int, int]:
+        """Our seeded local search over the mismatched sites (a mismatched paired site gets a new
+        placeable pair), each mutation kept when it does not increase d, within
+        ``improvement_folds`` folds, stopping once d = 0."""
         best, partners = list(sequence), self.target.partners
         folds = 0
         while folds < self.improvement_folds and distance > 0:
@@ -294,7 +398,7 @@ class RnaDesign(HostEnv):
             if partner >= 0:
                 opening, closing = min(site, partner), max(site, partner)
                 current = candidate[opening] + candidate[closing]
-                pairs = [p for p in ACTION_PAIRS if p != current]
+                pairs = [p for p in self.action_pairs if p != current]
                 candidate[opening], candidate[closing] = pairs[self._rng.integers(len(pairs))]
             else:
                 bases = [b for b in BASES if b != candidate[site]]
@@ -364,4 +468,11 @@ def _arc(canvas, start: float, end: float, height: float, colour) -> None:
         canvas.line(tuple(start_point), tuple(end_point), 0.0, colour)  # thinnest line
 
 
-__all__ = ["ACTION_PAIRS", "CHANNELS", "RnaDesign", "RnaDesignContext", "TargetError"]
+__all__ = [
+    "ACTION_PAIRS",
+    "CHANNELS",
+    "IMPROVEMENTS",
+    "RnaDesign",
+    "RnaDesignContext",
+    "TargetError",
+]
