@@ -40,10 +40,7 @@ from contextrl.context.features import ContextBase, context_type, feature
 from contextrl.envs.box2d.base import Box2DEnv, paint_body, sign
 
 HULL_POLYGON = ((-30, 9), (6, 9), (34, 1), (34, -8), (-30, -8))  # pixels
-GRASS, STUMP, STAIRS, PIT = range(4)
-TERRAIN_KINDS = (
-    5  # gymnasium draws the next obstacle from [1, 5): stump, stairs, pit (twice as often)
-)
+GRASS, STUMP, STAIRS, PIT = range(4)  # gymnasium draws each obstacle uniformly from STUMP..PIT
 LIDAR_RAYS = 10
 WALKER = "walker"  # the userData of the walker's fixtures, which the lidar looks through
 VELOCITY_ITERATIONS, POSITION_ITERATIONS = 6 * 30, 2 * 30
