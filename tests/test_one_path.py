@@ -19,14 +19,16 @@ from contextrl.core.spaces import Discrete
 from contextrl.gymnasium import gym_id
 from contextrl.gymnasium.env import run_key_bits
 
-# Every JAX family; of Brax, whose MJX programs take minutes to compile on a CPU, the cheapest task
-# (its envs share one base, so the stepping path under test is the same for all ten).
+# Every JAX family; of Brax, whose MJX programs take minutes to compile on a CPU, the cheapest task on
+# brax's positional pipeline, which compiles in about half the time (its envs share one base, so the
+# stepping path under test is the same for every task and pipeline; test_brax.py covers MJX's physics).
 JAX_ENVS = [
     name
     for name in crl.registered()
     if not crl.spec(name).host
     and (crl.spec(name).family != "brax" or name == "BraxInvertedPendulum")
 ]
+ENV_OPTIONS = {"BraxInvertedPendulum": {"backend": "positional"}}
 STEPS = 40
 MAX_STEPS = 12  # short episodes: several restarts (and context choices) per copy
 
@@ -69,6 +71,7 @@ def vector_run(name, contexts, selector, seed, copies, actions):
         contexts=contexts,
         context_selector=selector,
         max_steps=MAX_STEPS,
+        **ENV_OPTIONS.get(name, {}),
     )
     obs, info = envs.reset(seed=seed)
     rows = [(obs, None, None, None, info["context_id"])]
@@ -81,7 +84,11 @@ def vector_run(name, contexts, selector, seed, copies, actions):
 
 def single_run(name, contexts, selector, seed, actions):
     env = gymnasium.make(
-        gym_id(name), contexts=contexts, context_selector=selector, max_steps=MAX_STEPS
+        gym_id(name),
+        contexts=contexts,
+        context_selector=selector,
+        max_steps=MAX_STEPS,
+        **ENV_OPTIONS.get(name, {}),
     )
     obs, info = env.reset(seed=seed)
     rows = [(obs[None], None, None, None, np.array([info["context_id"]]))]
@@ -114,7 +121,7 @@ def assert_same(expected, actual, tolerance: float, where: str):
 
 @pytest.mark.parametrize("name", JAX_ENVS)
 def test_vmap_single_and_vector_envs_follow_the_same_trajectories(name):
-    env = crl.make(name, max_steps=MAX_STEPS)
+    env = crl.make(name, max_steps=MAX_STEPS, **ENV_OPTIONS.get(name, {}))
     contexts = three_contexts(env)
     rng = np.random.default_rng(0)
     copies = 3
