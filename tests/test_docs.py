@@ -4,11 +4,14 @@ starts with ``>>>`` is a doctest), so a stale snippet fails the suite. The pages
 are checked in test_readme_commands.py; `make docs` builds the site with ``mkdocs build --strict``."""
 
 import doctest
+import re
 from pathlib import Path
 
 import pytest
 from sybil import Sybil
 from sybil.parsers.markdown import PythonCodeBlockParser
+
+import contextrl as crl
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 PARSER = PythonCodeBlockParser(doctest_optionflags=doctest.NORMALIZE_WHITESPACE)
@@ -28,3 +31,13 @@ def test_page_python_blocks_run(page, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # blocks that write files (checkpoints, GIFs) write them here
     for example in Sybil(parsers=[PARSER]).parse(page):  # a failure names the page's line
         example.evaluate()
+
+
+def test_every_family_has_a_page_with_its_generated_tables():
+    """A new family shows up in the site: some page asks the docs build (tools/docs_hooks.py) for its
+    feature tables, which are generated from the declarations."""
+    families = {crl.spec(env_id).family for env_id in crl.registered()}
+    markers = set()
+    for page in DOCS.rglob("*.md"):
+        markers |= set(re.findall(r"^<!-- contextrl:features (\w+) -->$", page.read_text(), re.M))
+    assert families <= markers, f"families without a page: {sorted(families - markers)}"
