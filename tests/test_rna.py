@@ -457,15 +457,16 @@ def test_ppo_lowers_the_hamming_distance_on_short_synthetic_targets():
     improvement, seed 0: the mean normalised Hamming distance of the last 100 episodes against the
     first 100.
 
-    Measured (tests/learning_margins.py), the last 100 episodes' distance over the first 100's:
-    default numerics, seeds 0–15: 0.26–0.58, median 0.37; XLA's backend optimisation off,
-    seeds 100–107: 0.27–0.58, median 0.39. The former bound of 0.6 cleared the worst seed by 0.02;
-    0.8 (still a fifth of the distance learned away) clears it by 0.22.
+    Measured (tests/learning_margins.py) on LEARNA's task (4 actions, epoch-shuffled targets), the
+    last 100 episodes' distance over the first 100's: default numerics, seeds 0–15: 0.12–0.70,
+    median 0.36 (seed 0: 0.70; first 100 episodes 0.16–0.23, last 100 0.02–0.12); XLA's backend
+    optimisation off, seeds 100–107: 0.23–0.72, median 0.43. The bound of 0.85 (still 15 % of the
+    distance learned away) clears the worst seed by 0.13; the former 0.8 would clear it by 0.08.
     """
     statistics = learning.rna_short_targets([0])
     assert statistics["episodes"][0] > 400, statistics["episodes"]
     first, last = statistics["first_episodes"][0], statistics["last_episodes"][0]
-    assert last < 0.8 * first, (first, last)
+    assert last < 0.85 * first, (first, last)
 
 
 def test_the_train_test_example_spec_is_valid_for_rna_design():
