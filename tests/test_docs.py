@@ -12,6 +12,8 @@ from sybil import Sybil
 from sybil.parsers.markdown import PythonCodeBlockParser
 
 import contextrl as crl
+from contextrl.agents import registry as agent_registry
+from contextrl.core import registry
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 PARSER = PythonCodeBlockParser(doctest_optionflags=doctest.NORMALIZE_WHITESPACE)
@@ -29,6 +31,11 @@ def test_the_site_has_python_blocks():
 @pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
 def test_page_python_blocks_run(page, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # blocks that write files (checkpoints, GIFs) write them here
+    # what a page registers (the context model's tutorial environment, the agents page's agent) is gone
+    # after the page, so the tests that run over every registered environment or agent never see it
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    monkeypatch.setattr(registry, "_ALIASES", dict(registry._ALIASES))
+    monkeypatch.setattr(agent_registry, "_AGENTS", dict(agent_registry._AGENTS))
     for example in Sybil(parsers=[PARSER]).parse(page):  # a failure names the page's line
         example.evaluate()
 
