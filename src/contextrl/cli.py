@@ -29,10 +29,11 @@ def _space_label(space: Any) -> str:
     return f"Box({'×'.join(str(d) for d in space.shape)})"
 
 
-def environment_rows() -> list[dict[str, Any]]:
-    """One summary row per registered environment (builds each once to read its spaces)."""
+def environment_rows(family: str | None = None) -> list[dict[str, Any]]:
+    """One summary row per registered environment, or per one of ``family`` (builds each once to
+    read its spaces, so a family's list does not wait for the others to build)."""
     rows = []
-    for env_id in crl.registered():
+    for env_id in crl.registered(family):
         env_spec = crl.spec(env_id)
         env = env_spec.factory()
         features = env.context_space.features.values()
@@ -168,9 +169,7 @@ def parse_grid(text: str) -> tuple[str, list[float | str]]:
 
 # ---- subcommands ----------------------------------------------------------------------------------------
 def run_list(args: argparse.Namespace) -> int:
-    rows = environment_rows()
-    if args.family:
-        rows = [r for r in rows if r["family"] == args.family]
+    rows = environment_rows(args.family)
     print(markdown_table(rows) if args.markdown else text_table(rows))
     return 0
 
@@ -276,6 +275,12 @@ def run_render(args: argparse.Namespace) -> int:
     from contextrl.render.animation import animation_format, write_animation
 
     animation_format(args.out)  # an unknown suffix is refused before anything renders
+    folder = Path(args.out).parent
+    if not folder.is_dir():  # a typo in the folder is refused, not created
+        raise ContextError(
+            f"--out {args.out}: expected an existing folder, but {folder} is none; create it "
+            f"first or pick another, e.g. --out {Path(args.out).name}"
+        )
     env_id = crl.spec(args.env).id
     space = crl.spec(env_id).factory().context_space
     base = parse_assignments(args.context)
@@ -338,6 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--debug", action="store_true", help="show the full traceback of an error (any position)"
     )
+    parser.add_argument("--version", action="version", version=f"contextrl {crl.__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True)
     add_list(subparsers)
     add_describe(subparsers)

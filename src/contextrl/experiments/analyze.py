@@ -145,18 +145,33 @@ def score_intervals(
     intervals = interval_estimates(
         {name: s.matrix for name, s in scores.items() if s.present}, metrics_, reps=reps, seed=seed
     )
+
+    def shown(name: str, metric: str) -> str:
+        if name not in intervals:
+            return "no result"
+        if scores[name].matrix.shape[0] == 1:  # resampling one seed gives a zero-width interval
+            return f"{intervals[name][metric].point:.4g} ({ONE_SEED})"
+        return str(intervals[name][metric])
+
     rows = [
         {
             "agent": name,
-            **{
-                metric: str(intervals[name][metric]) if name in intervals else "no result"
-                for metric in metrics_
-            },
+            **{metric: shown(name, metric) for metric in metrics_},
             "cells (seeds × contexts)": s.cells_note(),
         }
         for name, s in scores.items()
     ]
     return intervals, rows
+
+
+ONE_SEED = "no interval with one seed"
+
+
+def interval_title(title: str, scores: Mapping[str, Scores], interval: str = "95% CI") -> str:
+    """``title (95% CI)``, or ``title (no interval with one seed)`` when every agent has one seed:
+    a bootstrap over one seed is zero wide, which a "95% CI" label would present as certainty."""
+    several = any(s.matrix.shape[0] > 1 for s in scores.values())
+    return f"{title} ({interval if several else ONE_SEED})"
 
 
 MISSING_TEXT = (
@@ -512,8 +527,9 @@ def per_context_section(
             f"{label}: each seed's return on a context is the mean over its "
             f"{int(group['trials'].max())} agents (trained on different contexts)."
         )
-    _, rows = score_intervals(score_matrices(cells), reps=spec.bootstrap_reps, seed=spec.seed)
-    intervals = ("Test return (95% CI over seeds and contexts)", rows)
+    scores = score_matrices(cells)
+    _, rows = score_intervals(scores, reps=spec.bootstrap_reps, seed=spec.seed)
+    intervals = (interval_title("Test return", scores, "95% CI over seeds and contexts"), rows)
     return Section(title, text, [intervals, (caption, shown), *tables], figures)
 
 
@@ -622,6 +638,29 @@ def learning_section(spec: CommonSpec, training: pd.DataFrame, plan: Plan) -> Se
     return Section("Did the agents learn?", text, [("Training contexts", rows)], warnings=warnings)
 
 
+def learning_check(spec: CommonSpec, training: pd.DataFrame, plan: Plan) -> Section | None:
+    """The "Did the agents learn?" section, or None where nothing trained yet (or the agent does
+    not learn): what the report shows and the terminal repeats (:func:`learning_verdict`)."""
+    if not spec.trains_agents or training.empty or not spec.agent_entry().trained:
+        return None
+    return learning_section(spec, training, plan)
+
+
+def learning_verdict(run: RunDir) -> list[str]:
+    """The report's learned-or-warn verdict as terminal lines (none before any agent trained), so
+    a run that did not learn does not end on a bare "ok"."""
+    spec = run.spec()
+    section = learning_check(spec, run.training(), expand(spec))
+    if section is None:
+        return []
+    if section.warnings:
+        return [f"warning: {warning}" for warning in section.warnings]
+    return [
+        f"{section.title} yes: every kind of agent clearly beats a random policy on its own "
+        "training contexts"
+    ]
+
+
 def build_report(run: RunDir) -> str:
     """Write ``report.html`` (and figures/*.png) for a run from what is on disk; return its path."""
     spec = run.spec()
@@ -644,8 +683,9 @@ def build_report(run: RunDir) -> str:
     ]
     if spec.trains_agents:
         sections.append(environment_section(spec, changed_features(plan)))
-        if not training.empty and spec.agent_entry().trained:
-            sections.append(learning_section(spec, training, plan))
+        learning = learning_check(spec, training, plan)
+        if learning is not None:
+            sections.append(learning)
     if results.empty:
         sections.append(Section("Results", ["Nothing has finished yet."]))
     elif not spec.trains_agents:

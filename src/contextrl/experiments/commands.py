@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from contextrl.agents import registered_agents
+from contextrl.experiments.analyze import learning_verdict
 from contextrl.experiments.executors import connect
 from contextrl.experiments.runner import prepare, report, resume
 from contextrl.experiments.runs import RunDir
@@ -274,6 +275,8 @@ def run_command(args: argparse.Namespace) -> int:
     finally:
         interrupt.close()
     print(f"report: {run.path / 'report.html'}")
+    for line in learning_verdict(run):
+        print(line)
     if summary.failed:
         print(
             f"{len(summary.failed)} chunk(s) failed; see the report, retry with --resume {run.path}"
@@ -365,6 +368,7 @@ def add_run(subparsers) -> None:
 
 
 def report_command(args: argparse.Namespace) -> int:
+    verdict: list[str] = []  # one run's learned-or-warn lines, as contextrl run ends with
     try:
         if len(args.run_dir) > 1:
             from contextrl.experiments.compare import compare_runs
@@ -372,16 +376,19 @@ def report_command(args: argparse.Namespace) -> int:
             out = Path(args.out or "comparison.html")
             if out.suffix.lower() not in (".html", ".htm"):
                 raise SpecError(f"--out {out}: the comparison is an HTML report; name it *.html")
-            path = compare_runs(args.run_dir, out)
+            path = compare_runs(args.run_dir, out, force=args.force)
         else:
             if args.out:
                 raise SpecError(
                     "report: --out is for several runs; one run's report is RUN/report.html"
                 )
             path = report(args.run_dir[0])
+            verdict = learning_verdict(RunDir(args.run_dir[0]))
     except FileNotFoundError as error:
         raise SpecError(str(error)) from None
     print(f"report: {path}")
+    for line in verdict:
+        print(line)
     return 0
 
 
@@ -392,6 +399,12 @@ def add_report(subparsers) -> None:
     )
     parser.add_argument("run_dir", nargs="+", help="run directories written by contextrl run")
     parser.add_argument("--out", help="with several runs: the comparison HTML (comparison.html)")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="with several runs: overlay runs of different protocols, environments or varied "
+        "features (labelled) instead of refusing",
+    )
     parser.set_defaults(handler=report_command)
 
 

@@ -18,8 +18,10 @@ from contextrl.analysis.report import Section, render
 from contextrl.experiments.analyze import (
     MISSING_TEXT,
     agent_label,
+    changed_features,
     curves_by_label,
     figure,
+    interval_title,
     missing_rows,
     return_lines,
     run_cells,
@@ -59,21 +61,52 @@ def _feature_lines(results: pd.DataFrame) -> list[tuple[str, dict]]:
     ]
 
 
-def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> Path:
-    """Write one HTML report overlaying the runs at ``paths`` (same protocol); returns its path."""
+def _differences(specs: Sequence, plans: Sequence) -> dict[str, list[str]]:
+    """What sets the runs' axes apart, per run: protocol, environment and the context features
+    their contexts change (``analyze.changed_features``); only the keys on which runs differ."""
+    import contextrl as crl
+
+    keys = {
+        "protocol": [spec.protocol for spec in specs],
+        "env": [crl.spec(spec.env).id for spec in specs],
+        "features": [", ".join(changed_features(plan)) or "none" for plan in plans],
+    }
+    return {key: values for key, values in keys.items() if len(set(values)) > 1}
+
+
+def compare_runs(
+    paths: Sequence[str | os.PathLike], out: str | os.PathLike, force: bool = False
+) -> Path:
+    """Write one HTML report overlaying the runs at ``paths``; returns its path. Runs of different
+    protocols, environments or varied features are refused (their returns do not share an axis),
+    or with ``force`` overlaid with each run's label naming how it differs."""
     runs = [RunDir(p) for p in paths]
     specs = [run.spec() for run in runs]
-    protocols = sorted({spec.protocol for spec in specs})
-    if len(protocols) > 1:
-        raise SpecError(
-            f"report: runs of different protocols {protocols} cannot be overlaid; "
-            "compare runs of one protocol"
-        )
-    if not specs[0].trains_agents:
-        raise SpecError(f"report: the {protocols[0]} protocol has no agents to overlay")
+    untrained = [spec.protocol for spec in specs if not spec.trains_agents]
+    if untrained:
+        raise SpecError(f"report: the {untrained[0]} protocol has no agents to overlay")
+    plans = [expand(spec) for spec in specs]
+    differ = _differences(specs, plans)
     labels = _labels(runs)
+    if differ and not force:
+        said = "; ".join(
+            f"{key} "
+            + ", ".join(f"{label}: {value}" for label, value in zip(labels, values, strict=True))
+            for key, values in differ.items()
+        )
+        raise SpecError(
+            f"report: these runs differ in {' and '.join(differ)} ({said}), so their returns do not "
+            "share an axis; compare runs of one protocol, environment and varied features, or "
+            "pass --force to overlay them labelled"
+        )
+    if differ:
+        labels = [
+            f"{label} [{', '.join(values[i] for values in differ.values())}]"
+            for i, label in enumerate(labels)
+        ]
+    protocols = list(dict.fromkeys(spec.protocol for spec in specs))
     frames, curve_frames, rows = [], [], []
-    for label, run, spec in zip(labels, runs, specs, strict=True):
+    for label, run, spec, plan in zip(labels, runs, specs, plans, strict=True):
         results, curves = run.results(), run.curves()
         rows.append(
             {
@@ -87,7 +120,7 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
             }
         )
         if len(results):
-            cells = run_cells(run, expand(spec), results)
+            cells = run_cells(run, plan, results)
             frames.append(cells.assign(overlay=label + ": " + agent_label(cells)))
         if len(curves):
             curve_frames.append(curves.assign(overlay=label + ": " + agent_label(curves)))
@@ -102,7 +135,7 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
         figure(
             "compare-intervals",
             plots.intervals(cis),
-            "Aggregate test return per run and agent with stratified-bootstrap 95% CIs",
+            interval_title("Aggregate test return per run and agent", scores),
         )
     ]
     missing = missing_rows(scores)
@@ -132,16 +165,25 @@ def compare_runs(paths: Sequence[str | os.PathLike], out: str | os.PathLike) -> 
     sections = [
         Section(
             "Runs",
-            [f"{len(runs)} runs of the {protocols[0]} protocol, overlaid."],
+            [
+                f"{len(runs)} runs of the {' and '.join(protocols)} protocol, overlaid."
+                + (
+                    f" They differ in {' and '.join(differ)} (--force); each label names its own."
+                    if differ
+                    else ""
+                )
+            ],
             [("Runs", rows)],
         ),
         Section(
             "Comparison",
             [MISSING_TEXT] if missing else [],
-            [("Test return (95% CI)", ci_rows)]
+            [(interval_title("Test return", scores), ci_rows)]
             + ([("Missing results", missing)] if missing else []),
             figures,
         ),
     ]
-    html = render(f"contextrl {protocols[0]}: {' vs '.join(labels)}", sections, {"runs": rows})
+    html = render(
+        f"contextrl {' / '.join(protocols)}: {' vs '.join(labels)}", sections, {"runs": rows}
+    )
     return write_text(Path(out), html)

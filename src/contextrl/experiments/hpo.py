@@ -56,7 +56,8 @@ class HPOSpec(CommonSpec):
     """PB2 over ``search`` (hyper-parameter → [low, high]) with a population trained on ``train``."""
 
     protocol: str = "hpo"
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
+    train: dict | None = None  # None: the environment's default (spec.ENV_DEFAULTS)
+    env_defaults = ("train",)
     test: dict | None = None  # None: held-out contexts from the training distribution
     num_train_contexts: int = 64
     num_test_contexts: int = 64

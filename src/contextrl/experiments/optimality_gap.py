@@ -13,6 +13,7 @@ from contextrl.analysis.intervals import paired_bootstrap_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
     figure,
+    interval_title,
     score_intervals,
     score_matrices,
     training_figure,
@@ -28,7 +29,8 @@ class OptimalityGapSpec(CommonSpec):
 
     protocol: str = "optimality_gap"
 
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
+    train: dict | None = None  # None: the environment's default (spec.ENV_DEFAULTS)
+    env_defaults = ("train",)
     num_contexts: int = 64
 
     def validate(self) -> None:
@@ -130,7 +132,7 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
             ),
             figure(
                 f"optgap-intervals-{variant}",
-                plots.intervals(cis, title="Aggregate return (95% CI)"),
+                plots.intervals(cis, title=interval_title("Aggregate return", scores)),
                 "Mean, median and IQM with stratified-bootstrap CIs",
             ),
         ]

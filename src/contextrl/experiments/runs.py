@@ -71,6 +71,11 @@ class RunDir:
                 raise FileExistsError(
                     f"{path} already holds a run; resume it with --resume {path} or pick a new --out"
                 )
+            if path.exists() and not path.is_dir():
+                raise FileExistsError(
+                    f"--out {path}: expected a folder for the run, but a file has that name; "
+                    f"pick a new folder, e.g. --out {path.parent / (path.stem + '-run')}"
+                )
         else:
             stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
             path = Path(root) / f"{spec.name}-{stamp}"

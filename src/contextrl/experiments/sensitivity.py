@@ -81,7 +81,15 @@ class SensitivitySpec(CommonSpec):
 
     @classmethod
     def vary(cls, data: dict, items: list[str]) -> str | None:
-        """``--vary g --vary l`` names the features to scale, added to those a config names."""
+        """``--vary g --vary l`` names the features to scale, added to those a config names; a
+        distribution (``l=uniform:…``, other protocols' syntax) is refused with the syntax to use."""
+        for item in items:
+            if "=" in item:
+                raise SpecError(
+                    f"--vary: sensitivity takes feature names (it scales each by the magnitudes), "
+                    f"got {item!r}; e.g. --vary {item.partition('=')[0].strip()} and "
+                    "--set 'magnitudes=[0.5, 1, 2]'"
+                )
         existing = data.get("features")
         if not isinstance(existing, (list, tuple)) or not existing:
             data["features"] = list(items)  # replaces "all"

@@ -12,6 +12,7 @@ variant or key, an empty distribution, an empty or overlapping train/test split 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import re
@@ -47,6 +48,39 @@ DISTRIBUTION_NAMES = {
 
 class SpecError(ValueError):
     """An invalid experiment spec; raised before anything runs."""
+
+
+# What each protocol varies on an environment when neither --vary nor a config says: a training
+# distribution (``train``) or Kirk et al.'s two-feature boxes (``train_box``/``test_box``). Protocols
+# name the fields they take from here (``CommonSpec.env_defaults``); an environment missing here
+# needs --vary, so a default never names another environment's feature.
+ENV_DEFAULTS: dict[str, dict[str, dict]] = {
+    "CartPole": {
+        "train": {"length": {"uniform": [0.25, 0.75]}},
+        "train_box": {"length": [0.25, 0.75], "tau": [0.015, 0.025]},
+        "test_box": {"length": [0.05, 1.5], "tau": [0.005, 0.05]},
+    },
+    "Pendulum": {
+        "train": {"l": {"uniform": [0.5, 1.5]}},
+        "train_box": {"l": [0.75, 1.25], "m": [0.75, 1.25]},
+        "test_box": {"l": [0.25, 2.0], "m": [0.25, 2.0]},
+    },
+    "MountainCar": {
+        "train": {"gravity": {"uniform": [0.002, 0.003]}},
+        "train_box": {"gravity": [0.002, 0.003], "force": [0.0008, 0.0012]},
+        "test_box": {"gravity": [0.001, 0.005], "force": [0.0004, 0.002]},
+    },
+    "MountainCarContinuous": {
+        "train": {"gravity": {"uniform": [0.002, 0.003]}},
+        "train_box": {"gravity": [0.002, 0.003], "power": [0.0012, 0.0018]},
+        "test_box": {"gravity": [0.001, 0.005], "power": [0.0006, 0.003]},
+    },
+    "Acrobot": {
+        "train": {"LINK_LENGTH_1": {"uniform": [0.75, 1.25]}},
+        "train_box": {"LINK_LENGTH_1": [0.75, 1.25], "LINK_MASS_1": [0.75, 1.25]},
+        "test_box": {"LINK_LENGTH_1": [0.25, 2.0], "LINK_MASS_1": [0.25, 2.0]},
+    },
+}
 
 
 class _SpecLoader(yaml.SafeLoader):
@@ -112,8 +146,23 @@ def parse_distribution(feature: str, value: Any):
         args = args if isinstance(args, (list, tuple)) else [args]
         try:
             return DISTRIBUTION_NAMES[name](*args)
-        except TypeError as error:
-            raise SpecError(f"{feature}: bad arguments {args!r} for {name} ({error})") from None
+        except TypeError:
+            fields = dataclasses.fields(DISTRIBUTION_NAMES[name])
+            names = [f.name for f in fields if f.default is dataclasses.MISSING]
+            optional = [f.name for f in fields if f.default is not dataclasses.MISSING]
+            takes = f"[{', '.join(names)}]" + (
+                f" (optional: {', '.join(optional)})" if optional else ""
+            )
+            raise SpecError(
+                f"{feature}: {name} takes {takes}, got {list(args)!r}; e.g. {feature}: "
+                f"{{{name}: [{', '.join(names)}]}} in YAML or {feature}={name}:"
+                f"{':'.join(names)} with --vary"
+            ) from None
+    if isinstance(value, str):  # "0.5" from the command line is the number YAML reads
+        loaded = load_yaml(value, feature)
+        value = (
+            loaded if isinstance(loaded, (int, float)) and not isinstance(loaded, bool) else value
+        )
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise SpecError(f"{feature}: cannot read {value!r} as a distribution or a value")
     return Constant(value)
@@ -173,6 +222,7 @@ class CommonSpec:
 
     trains_agents: ClassVar[bool] = True  # False: the protocol has no agent, env or variants
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
+    env_defaults: ClassVar[tuple[str, ...]] = ()  # fields (None) filled from ENV_DEFAULTS
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
     runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
@@ -209,6 +259,15 @@ class CommonSpec:
                 agent.config(self.env, self.agent_options, variant)
         except ConfigError as error:
             raise SpecError(f"agent_options: {error}") from None
+        for field in self.env_defaults:
+            if getattr(self, field) is None:  # parse_spec found no default for this environment
+                import contextrl as crl
+
+                env_id = crl.spec(self.env).id
+                raise SpecError(
+                    f"{field}: the {self.protocol} protocol needs --vary for {env_id} (it has no "
+                    f"default {field} there); e.g. {_vary_example(type(self), env_id)}"
+                )
 
     def _refuse_agent_fields(self) -> None:
         """A protocol without agents refuses an agent, environment or variants it would ignore."""
@@ -409,9 +468,50 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
         values[name] = value
     if "name" not in values or not values["name"]:
         values["name"] = protocol
+    _fill_env_defaults(cls, values)
     spec = cls(**values)
     spec.validate()
     return spec
+
+
+def _fill_env_defaults(cls: type[CommonSpec], values: dict[str, Any]) -> None:
+    """Set each of ``cls.env_defaults`` not given from the environment's entry in ENV_DEFAULTS;
+    one the environment has none for stays None, which :meth:`CommonSpec.validate` refuses with
+    an example on the environment's own features (after the checks of the env and agent)."""
+    import contextrl as crl
+
+    env = values.get("env", cls.__dataclass_fields__["env"].default)
+    try:
+        defaults = ENV_DEFAULTS.get(crl.spec(env).id, {})
+    except (KeyError, TypeError):
+        return  # validate names the registered environments
+    for field in cls.env_defaults:
+        if values.get(field) is None and field in defaults:
+            values[field] = copy.deepcopy(defaults[field])
+
+
+def _vary_example(cls: type[CommonSpec], env_id: str) -> str:
+    """An example --vary for ``env_id``: its first two scalable features at 0.5-1.5 × their default,
+    clipped to their bounds, in the syntax of the protocol's vary field, and every feature's name."""
+    import contextrl as crl
+
+    features = crl.spec(env_id).factory().context_space.features
+    scalable = [(n, f) for n, f in features.items() if f.kind != "categorical" and f.default]
+    ranges = [
+        (n, *sorted((max(f.lower, 0.5 * f.default), min(f.upper, 1.5 * f.default))))
+        for n, f in scalable[:2]
+    ]
+    if cls.vary_field == "train_box":
+        items = " ".join(f"--vary {n}=[{lo:g},{hi:g}]" for n, lo, hi in ranges)
+        tests = ", ".join(
+            f"{n}: [{max(features[n].lower, lo / 2):g}, {min(features[n].upper, hi * 2):g}]"
+            for n, lo, hi in ranges
+        )
+        example = f"{items} --set 'test_box={{{tests}}}'"
+    else:
+        n, lo, hi = ranges[0]
+        example = f"--vary {n}=uniform:{lo:g}:{hi:g}"
+    return f"{example} (features of {env_id}: {', '.join(features)})"
 
 
 def spec_to_dict(spec: CommonSpec) -> dict[str, Any]:

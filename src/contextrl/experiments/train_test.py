@@ -50,12 +50,9 @@ class TrainTestSpec(CommonSpec):
     protocol: str = "train_test"
     variants: tuple[str, ...] = ("hidden", "concat_varying")
     modes: tuple[str, ...] = ("A", "B", "C")
-    train_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.25, 0.75], "tau": [0.015, 0.025]}
-    )
-    test_box: dict = dataclasses.field(
-        default_factory=lambda: {"length": [0.05, 1.5], "tau": [0.005, 0.05]}
-    )
+    train_box: dict | None = None  # None: the environment's default (spec.ENV_DEFAULTS)
+    test_box: dict | None = None
+    env_defaults = ("train_box", "test_box")
     band: float = 0.1
     num_train_contexts: int = 64
     num_test_contexts: int = 144

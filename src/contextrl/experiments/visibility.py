@@ -13,6 +13,7 @@ from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
     curves_by_variant,
     figure,
+    interval_title,
     score_intervals,
     score_matrices,
 )
@@ -28,7 +29,8 @@ class VisibilitySpec(CommonSpec):
     protocol: str = "visibility"
 
     variants: tuple[str, ...] = ("hidden", "concat_all", "concat_varying")
-    train: dict = dataclasses.field(default_factory=lambda: {"length": {"uniform": [0.25, 0.75]}})
+    train: dict | None = None  # None: the environment's default (spec.ENV_DEFAULTS)
+    env_defaults = ("train",)
     test: dict | None = None  # None: held-out contexts from the training distribution
     num_train_contexts: int = 64
     num_test_contexts: int = 64
@@ -97,7 +99,7 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.
         figure("test-histogram", plots.histograms(returns, title="Test returns"), "Test returns"),
         figure(
             "test-intervals",
-            plots.intervals(cis, title="Test return (95% CI)"),
+            plots.intervals(cis, title=interval_title("Test return", scores)),
             "Aggregate test return with stratified-bootstrap CIs",
         ),
     ]

@@ -14,11 +14,15 @@ rendering; MuJoCo reads it when it is first imported, which brax does) unless it
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import functools
+import io
+import logging
 import os
 import sys
+import warnings
 from typing import Any, ClassVar
 
 import jax
@@ -52,6 +56,29 @@ def compass_angle(choices: tuple[str, ...], index) -> jax.Array:
     return jnp.deg2rad(degrees[index])
 
 
+@contextlib.contextmanager
+def _quiet_brax():
+    """Brax's and MuJoCo's notices about themselves, not about the user's work, kept out of the
+    terminal and the current folder: MJX's "Failed to import warp" print (stdout), brax's
+    "not actively maintained" UserWarning, and MuJoCo's compiler deprecation warnings on brax's
+    stock models, which MuJoCo's default handler would print and append to ./MUJOCO_LOG.TXT.
+    What was held back goes to the ``contextrl`` logger at DEBUG level."""
+    import mujoco
+
+    log = logging.getLogger("contextrl")
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda message: log.debug("MuJoCo: %s", message))
+    printed = io.StringIO()
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stdout(printed):
+            warnings.filterwarnings("ignore", message="Brax System", category=UserWarning)
+            yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+        if printed.getvalue().strip():
+            log.debug("brax import: %s", printed.getvalue().strip())
+
+
 @functools.cache
 def load_brax_env(brax_name: str, backend: str, fluid: bool):
     """Brax's environment object with its stock system, loaded from its MJCF once per process.
@@ -59,9 +86,10 @@ def load_brax_env(brax_name: str, backend: str, fluid: bool):
     ``fluid`` switches on MJX's medium model (a static switch), so a viscosity from the context acts;
     at viscosity 0 the medium adds exactly zero force.
     """
-    from brax import envs as brax_envs
+    with _quiet_brax():
+        from brax import envs as brax_envs
 
-    env = brax_envs.get_environment(brax_name, backend=backend)
+        env = brax_envs.get_environment(brax_name, backend=backend)
     if fluid:
         impl = dataclasses.replace(env.sys.opt._impl, has_fluid_params=True)
         env.sys = env.sys.replace(opt=env.sys.opt.replace(_impl=impl))
