@@ -61,7 +61,7 @@ def direct(length: int, episodes: int) -> tuple[float, float, list[str]]:
     context = env.context(**CONTEXT)
     for seed in range(episodes):  # draw (and cache) the targets outside the timed part
         env.reset_physics(context, np.random.default_rng(seed))
-    actions = np.random.default_rng(0).integers(0, 6, (episodes, length)).tolist()
+    actions = np.random.default_rng(0).integers(0, env.action_space.n, (episodes, length)).tolist()
     with FoldTimer() as timer:
         start = time.perf_counter()
         for episode in range(episodes):
@@ -80,7 +80,7 @@ def through_gymnasium(length: int, episodes: int) -> tuple[float, float]:
     env.reset(seed=0)
     for _ in range(episodes):  # draw the targets and compile the context choice first
         env.reset()
-    actions = np.random.default_rng(0).integers(0, 6, (episodes, length)).tolist()
+    actions = np.random.default_rng(0).integers(0, env.action_space.n, (episodes, length)).tolist()
     env.reset(seed=0)
     with FoldTimer() as timer:
         start = time.perf_counter()

@@ -164,6 +164,11 @@ class Constant:
     value: Any
 
     def check(self, feature: Feature) -> None:
+        if np.ndim(self.value) != 0:
+            raise ContextError(
+                f"{feature.name}: {self.value!r} is not a distribution; give one value, or a "
+                f"distribution such as crl.Uniform(low, high) or crl.Categorical([...]) to draw from"
+            )
         feature.coerce(self.value)
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:

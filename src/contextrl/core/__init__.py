@@ -7,7 +7,7 @@ from contextrl.core.contextual import (
     make_provider,
     with_contexts,
 )
-from contextrl.core.env import Env, EnvState, TimeStep, tree_where
+from contextrl.core.env import Env, EnvState, TimeStep, checked, tree_where
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import EnvSpec, make, register, registered, spec
 from contextrl.core.spaces import Box, Discrete
@@ -17,6 +17,7 @@ __all__ = [
     "ContextualEnv",
     "ContextualState",
     "Discrete",
+    "checked",
     "choose_context",
     "Env",
     "EnvSpec",

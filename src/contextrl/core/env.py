@@ -4,16 +4,24 @@ An environment writes four unbatched pieces (``init``, ``transition``, ``observe
 base class adds what every environment shares, once: the step counter and time limit (a truncation), the
 same-step auto-reset that keeps the last observation in ``final_obs``, and the context observation. Nothing
 here is jitted: callers compile once, at the edge (``jax.jit(jax.vmap(env.step))``).
+
+Inputs are checked here, once for every environment, when ``reset`` and ``step`` are traced: the context's
+type (a dict of feature values is converted), the action's dtype and shape, and, where they are
+concrete (an eager call), the action's values. Values known only at run time inside a compiled program
+(an out-of-range discrete action, a NaN) cannot raise there; :func:`checked` adds ``checkify`` checks
+for them.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import checkify
 
 from contextrl.context.features import ContextError
 from contextrl.context.observation import ContextObservation
@@ -61,11 +69,13 @@ class Env:
     """Base of every JAX environment: static configuration only, pure functions of (key, state, context).
 
     ``max_steps`` is the time limit (None: the original environment's); ``obs_context`` says which
-    context features are appended to the observation (default: none, the original observation).
+    context features are appended to the observation (default: none, the original observation);
+    ``run_time_checks`` adds the ``checkify`` checks of :func:`checked`.
     """
 
     max_steps: int | None = None
     obs_context: ContextObservation = ContextObservation()
+    run_time_checks: bool = False
 
     context_type: ClassVar[type]
     default_max_steps: ClassVar[int]
@@ -158,6 +168,7 @@ class Env:
 
     def reset(self, key, context) -> tuple[EnvState, TimeStep]:
         """Start an episode under ``context``."""
+        context = self.as_context(context)
         init_key, obs_key = self._keys(key, 2) if self.obs_context.noise > 0 else (key, None)
         physics = self.init(init_key, context)
         obs = self._observation(physics, context, obs_key)
@@ -181,6 +192,8 @@ class Env:
 
         ``key`` is used only when :attr:`steps_need_key`.
         """
+        context = self.as_context(context)
+        action = self.checked_action(action)
         transition_key, obs_key = key, None
         if self.stochastic_transition and self.obs_context.noise > 0:
             transition_key, obs_key = self._keys(key, 2)
@@ -214,8 +227,84 @@ class Env:
 
     def check_context(self, context) -> None:
         """Raise ContextError unless ``context`` is a valid context of this environment."""
-        if not isinstance(context, self.context_type):
-            raise ContextError(
-                f"{self.name} expects a {self.context_type.__name__}, got {type(context).__name__}"
+        self.context_space.check(self.as_context(context))
+
+    def as_context(self, context):
+        """``context`` as this environment's context type; a dict of feature values is converted (and
+        checked where its values are concrete), anything else refused, naming the type expected."""
+        if isinstance(context, self.context_type):
+            return context
+        if isinstance(context, Mapping):
+            return self.context_space.make(**context)
+        raise ContextError(
+            f"{self.name} expects a {self.context_type.__name__} (from env.context(...), "
+            f"env.default_context() or crl.sample(env, ...)) or a dict of its feature values, "
+            f"got {type(context).__name__}"
+        )
+
+    def checked_action(self, action) -> jax.Array:
+        """``action`` as an array of the action space's dtype, refused (ValueError) when its kind or shape
+        cannot be one; concrete values are checked too, traced ones under ``run_time_checks``."""
+        space = self.action_space
+        discrete = isinstance(space, Discrete)
+        expected = (
+            f"an integer in [0, {space.n})" if discrete else f"finite floats of shape {space.shape}"
+        )
+        kind = None if isinstance(action, (str, bytes)) else _dtype_kind(action)
+        if kind is None or kind not in ("iu" if discrete else "iuf"):
+            raise ValueError(
+                f"{self.name}: an action is {expected}, got {_short(action)} "
+                f"({type(action).__name__})"
             )
-        self.context_space.check(context)
+        if np.shape(action) != space.shape:
+            raise ValueError(
+                f"{self.name}: an action is {expected}, got shape {np.shape(action)} "
+                f"({_short(action)})"
+            )
+        action = jnp.asarray(action, space.dtype)
+        valid = (action >= 0) & (action < space.n) if discrete else jnp.all(jnp.isfinite(action))
+        message = f"{self.name}: an action is {expected}, got {{}}"
+        if not isinstance(action, jax.core.Tracer):
+            if not bool(valid):
+                raise ValueError(message.format(_short(action)))
+        elif self.run_time_checks:
+            checkify.check(valid, message, action)
+        return action
+
+
+def _dtype_kind(value) -> str | None:
+    """NumPy's kind letter of ``value``'s dtype ("b", "i", "u", "f"…), None where it has none."""
+    dtype = getattr(value, "dtype", None)
+    if dtype is None:
+        try:
+            dtype = np.asarray(value).dtype
+        except (TypeError, ValueError):
+            return None
+    return np.dtype(dtype).kind
+
+
+def _short(value) -> str:
+    """A short repr of a user's action for an error message."""
+    if isinstance(value, (str, bytes, jax.core.Tracer)):
+        text = repr(value)
+    else:
+        try:
+            text = repr(np.asarray(value).tolist())
+        except (TypeError, ValueError):
+            text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def checked(env: Env) -> Env:
+    """``env`` whose compiled steps also check what only run time knows: a discrete action outside
+    [0, n) or a non-finite action is reported once the program is wrapped by ``checkify``::
+
+        from jax.experimental import checkify
+        step = checkify.checkify(jax.jit(crl.checked(env).step))
+        error, (state, ts) = step(key, state, action, context)
+        error.throw()  # checkify.JaxRuntimeError naming the environment and the action
+
+    Unchecked, a compiled step does not look at those values (as in gymnax): the result of such an
+    action is unspecified. Eager calls check concrete actions always.
+    """
+    return dataclasses.replace(env, run_time_checks=True)
