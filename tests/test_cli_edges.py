@@ -132,6 +132,18 @@ def test_report_refuses_runs_of_different_features(tmp_path, capsys):
     one_line_error(status, err, "differ in features", "a: length", "b: gravity")
 
 
+# ---- 4: hpo's budget is rounds × steps_per_round --------------------------------------------------
+def test_hpo_refuses_timesteps_it_would_ignore(capsys, tmp_path):
+    """Before: --timesteps was ignored (each member trained rounds × steps_per_round) and then written
+    into best.yaml as if it had been the budget."""
+    argv = ["run", "hpo", "--timesteps", "5000", "--root", str(tmp_path), *DRY]
+    status, _, err = cli(capsys, *argv)
+    one_line_error(
+        status, err, "hpo trains each member for rounds × steps_per_round", "--set steps_per_round="
+    )
+    assert not list(tmp_path.iterdir())  # nothing was made
+
+
 # ---- 5: the terminal ends with the report's learned-or-warn verdict -----------------------------
 @pytest.mark.parametrize(("trained", "expected"), [(0.0, "warning: "), (500.0, "learn? yes")])
 def test_run_ends_with_the_learning_verdict(trained, expected, tmp_path, capsys):

@@ -82,12 +82,14 @@ CASES = [
 pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
 
 
-def agent_options(agent: str) -> list[str]:
+def agent_options(agent: str, protocol: str) -> list[str]:
     from contextrl.agents import get_agent
 
     entry = get_agent(agent)
     valid = set(entry.option_names())
     options = {**OPTIONS[agent], **{k: v for k, v in COMMON.items() if k in valid}}
+    if protocol == "hpo":  # its budget is rounds × steps_per_round (protocol_args)
+        del options["total_timesteps"]
     if entry.trained:
         options["hidden_sizes"] = [8]
     return [item for k, v in options.items() for item in ("--agent-option", f"{k}={v}")]
@@ -136,7 +138,7 @@ def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tm
     own, rows = protocol_args(protocol, agent, env)
     argv = ["run", protocol, "--env", env, "--agent", agent, "--seeds", "1", "--variants", "hidden"]
     argv += ["--max-steps", "10", "--episodes", "1", "--out", str(out), "--quiet"]
-    assert contextrl([*argv, *own, *agent_options(agent)]) == 0
+    assert contextrl([*argv, *own, *agent_options(agent, protocol)]) == 0
     table = results(out)
     assert len(table) == rows and np.isfinite(table["return"]).all()
     (first, low, high), (second, low2, high2) = FEATURES[env]

@@ -596,7 +596,7 @@ def learning_section(spec: CommonSpec, training: pd.DataFrame, plan: Plan) -> Se
     specialist per context) is checked set by set; a warning names each kind or set that failed."""
     sets = {t.id: t.train_set for t in plan.trials}
     # a trial outside the plan's grid (hpo's best member) is its kind's only agent
-    frame = training.assign(train_set=training["trial"].map(sets).fillna(""))
+    frame = training.assign(train_set=[sets.get(trial, "") for trial in training["trial"]])
     rows, warnings = [], []
     for (variant, kind), group in frame.groupby(["variant", "kind"], sort=False):
         agents = group.groupby("train_set", sort=False)[["train_return", "random_return"]].mean()

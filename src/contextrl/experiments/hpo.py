@@ -73,6 +73,13 @@ class HPOSpec(CommonSpec):
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):
             _check_int(field, getattr(self, field), 1)
         _check_int("steps_per_round", self.steps_per_round, 1)
+        if "total_timesteps" in self.agent_options:
+            raise SpecError(
+                "agent_options.total_timesteps: hpo trains each member for rounds × steps_per_round "
+                f"steps ({self.rounds} × {self.steps_per_round} here), so --timesteps and "
+                "total_timesteps do not apply; set the budget with --set rounds=N and "
+                "--set steps_per_round=N"
+            )
         if len(self.variants) != 1:
             raise SpecError(
                 f"variants: hpo tunes one visibility variant, got {list(self.variants)}"
