@@ -245,7 +245,7 @@ PPO_TINY = [
 ]  # fmt: skip
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # xdist may run other files between its tests
 def trained_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("trained")
     result = contextrl(*PPO_TINY, "--out", "run", "--log", "tensorboard", cwd=folder)
