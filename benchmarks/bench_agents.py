@@ -2,7 +2,7 @@
 
     python benchmarks/bench_agents.py [--seeds 10] [--only ppo c51 sac] [--scale 0.1]
 
-The issue's runs: PPO on CartPole (10 seeds × 500,000 steps, target ≤ 60 s including compile),
+The runs: PPO on CartPole (10 seeds × 500,000 steps, compile included in the wall time),
 C51 on CartPole (10 seeds × 100,000 steps; ``c51-paper``: the paper's C51 setting, one environment copy,
 256×256, a gradient step and a soft target update every step) and SAC on Pendulum (10 seeds × 50,000
 steps). Compilation is
