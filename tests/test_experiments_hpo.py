@@ -12,9 +12,7 @@ from contextrl.experiments.commands import main as commands_main
 BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
 
 
-# One worker runs the whole file: its PB2 runs are the suite's costliest setup (a session fixture, so
-# they are made once even when xdist runs other files between this file's tests).
-pytestmark = [pytest.mark.usefixtures("shut_down_ray"), pytest.mark.xdist_group("hpo")]
+pytestmark = pytest.mark.usefixtures("shut_down_ray")
 
 
 def test_hpo_search_bounds_are_checked_before_anything_runs():
@@ -28,7 +26,7 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
         parse_spec({"protocol": "hpo", "population": 1})
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")  # the suite's costliest setup: made once (make test: --dist loadfile)
 def pb2_runs(tmp_path_factory):
     """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. Ray's
     workers inherit the suite's JAX compilation cache (conftest.py), so the second run loads the

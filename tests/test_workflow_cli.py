@@ -17,9 +17,6 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
-pytestmark = pytest.mark.xdist_group("workflow_cli")  # one worker trains the shared run once
-
-
 def contextrl(*argv, cwd, umask=None, timeout=300):
     """Run ``contextrl ARGV`` in a fresh interpreter; returns the CompletedProcess."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
@@ -245,7 +242,7 @@ PPO_TINY = [
 ]  # fmt: skip
 
 
-@pytest.fixture(scope="session")  # xdist may run other files between its tests
+@pytest.fixture(scope="module")  # trained once: make test runs a file's tests in one worker
 def trained_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("trained")
     result = contextrl(*PPO_TINY, "--out", "run", "--log", "tensorboard", cwd=folder)
