@@ -4,13 +4,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contextrl.experiments import run_experiment
+from contextrl.experiments import expand, run_experiment
+from contextrl.experiments.analyze import run_cells
 from contextrl.experiments.commands import main as commands_main
+from contextrl.experiments.optimality_gap import gap_statistics
 
 PPO_OPTIONS = {"total_timesteps": 2048, "num_envs": 4, "num_steps": 64, "hidden_sizes": [16, 16]}
 
 
 def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
+    """Also: worker processes train exactly what this process trains (trained agents, not a random
+    policy), and the report states the gap, and each seed's return, that gap_statistics computes."""
     spec = {
         "protocol": "optimality_gap",
         "num_contexts": 2,
@@ -32,6 +36,19 @@ def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
     assert set(curves["trial"]) == set(results["trial"]) and curves["step"].max() == 2048
     html = (run.path / "report.html").read_text()
     assert "Optimality gap (concat_varying)" in html and "Probability that a specialist" in html
+    stats = gap_statistics(run.spec(), run_cells(run, expand(run.spec()), results))
+    assert f"= {stats['concat_varying'].gap}." in html
+    general = stats["concat_varying"].per_seed()["general"]
+    assert len(general) == 2 and "general " + ", ".join(f"{v:.1f}" for v in general) in html
+    spread, summary = run_experiment(
+        spec, out=tmp_path / "spread", executor="processes", progress=False, report=False
+    )
+    assert summary.failed == []
+    columns = ["trial", "context_index", "return"]
+    pd.testing.assert_frame_equal(
+        spread.results()[columns].sort_values(columns[:2], ignore_index=True),
+        results[columns].sort_values(columns[:2], ignore_index=True),
+    )
 
 
 def test_ray_executor_matches_local(tmp_path):

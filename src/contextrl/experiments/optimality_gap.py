@@ -9,9 +9,10 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import paired_bootstrap_ci
+from contextrl.analysis.intervals import Interval, paired_bootstrap_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
+    Scores,
     figure,
     interval_title,
     score_intervals,
@@ -66,8 +67,29 @@ def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
-    sections = []
+@dataclasses.dataclass(frozen=True)
+class GapStatistics:
+    """One variant's optimality gap as the report states it (bench_findings.py prints it too)."""
+
+    general: Scores
+    specialists: Scores
+    gap: Interval  # E_c[G_specialist(c) − G_general(c)]
+    improvement: Interval  # P(a specialist beats the general agent on a context)
+    aggregates: list  # mean, median, IQM with their intervals, one row per agent
+    intervals: dict  # the same intervals for the figure
+
+    def per_seed(self) -> dict[str, np.ndarray]:
+        """Each seed's mean return over its contexts: shows a gap carried by a few failed seeds."""
+        return {
+            "general": np.ma.filled(np.ma.mean(self.general.matrix, axis=1), np.nan),
+            "specialists": np.ma.filled(np.ma.mean(self.specialists.matrix, axis=1), np.nan),
+        }
+
+
+def gap_statistics(spec: OptimalityGapSpec, cells: pd.DataFrame) -> dict[str, GapStatistics]:
+    """Per variant with both kinds finished, the gap, the probability of improvement and the
+    aggregates, with stratified-bootstrap intervals from the spec's seed."""
+    out = {}
     for variant in spec.variants:
         mine = cells[cells["variant"] == variant]
         scores = score_matrices(mine, mine["kind"])
@@ -79,24 +101,43 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
                 f"optimality gap ({variant}): the general agent was tested on contexts "
                 f"{[c for _, c in g.contexts]} but the specialists on {[c for _, c in s.contexts]}"
             )
-        g_scores, s_scores = g.matrix, s.matrix
         cis, rows = score_intervals(
             {"general": g, "specialists": s}, reps=spec.bootstrap_reps, seed=spec.seed
         )
         gap = paired_bootstrap_ci(
-            g_scores,
-            s_scores,
+            g.matrix,
+            s.matrix,
             metrics.context_optimality_gap,
             reps=spec.bootstrap_reps,
             seed=spec.seed,
         )
         improvement = paired_bootstrap_ci(
-            s_scores,
-            g_scores,
+            s.matrix,
+            g.matrix,
             metrics.probability_of_improvement,
             reps=spec.bootstrap_reps,
             seed=spec.seed,
         )
+        out[variant] = GapStatistics(g, s, gap, improvement, rows, cis)
+    return out
+
+
+def _per_seed_text(stats: GapStatistics) -> str:
+    seeds = stats.per_seed()
+    return (
+        "Mean return per seed over its contexts: "
+        + "; ".join(
+            f"{name} " + ", ".join(f"{v:.1f}" for v in values) for name, values in seeds.items()
+        )
+        + "."
+    )
+
+
+def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
+    sections = []
+    for variant, stats in gap_statistics(spec, cells).items():
+        g, s = stats.general, stats.specialists
+        g_scores, s_scores = g.matrix, s.matrix
         best = float(max(g.values.max(), s.values.max()))
         threshold = metrics.near_best_threshold(g_scores, s_scores)
         solved = {
@@ -106,15 +147,17 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
         per_context = metrics.per_context_gap(g_scores, s_scores)
         varying = plan.spec.space().varying(plan.sets["train"].contexts)
         feature = varying[0] if varying else None
-        for row in rows:
+        for row in stats.aggregates:
             row["fraction at best return"] = solved[row["agent"]]
         text = [
             f"Variant {variant}: one general agent trained on {spec.num_contexts} contexts vs one "
             f"specialist per context; each evaluated on the context(s) it was trained on "
             f"({spec.eval_episodes} episodes, {spec.seeds} seeds). 95% stratified-bootstrap CIs "
             f"({spec.bootstrap_reps} replicates, seed {spec.seed}).",
-            f"Optimality gap E_c[G_specialist(c) − G_general(c)] = {gap}.",
-            f"Probability that a specialist beats the general agent on a context: {improvement}.",
+            f"Optimality gap E_c[G_specialist(c) − G_general(c)] = {stats.gap}.",
+            "Probability that a specialist beats the general agent on a context: "
+            f"{stats.improvement}.",
+            _per_seed_text(stats),
             f"Fraction of run×context returns at the best return observed in the run ({best:g}; "
             f"within 1% of the observed return range, i.e. ≥ {threshold:g}): "
             f"general {solved['general']:.2f}, specialists {solved['specialists']:.2f}.",
@@ -132,7 +175,9 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
             ),
             figure(
                 f"optgap-intervals-{variant}",
-                plots.intervals(cis, title=interval_title("Aggregate return", scores)),
+                plots.intervals(
+                    stats.intervals, title=interval_title("Aggregate return", {"g": g, "s": s})
+                ),
                 "Mean, median and IQM with stratified-bootstrap CIs",
             ),
         ]
@@ -153,7 +198,9 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
                 )
             )
         sections.append(
-            Section(f"Optimality gap ({variant})", text, [("Aggregates", rows)], figures)
+            Section(
+                f"Optimality gap ({variant})", text, [("Aggregates", stats.aggregates)], figures
+            )
         )
     if not sections:
         sections.append(Section("Optimality gap", ["Not enough finished trials for the gap."]))
