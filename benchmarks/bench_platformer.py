@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from _scan import CORES, batched_rollout, steps_per_second
 
 import contextrl as crl
-from contextrl.envs.platformer import platformer
+from contextrl.envs.platformer import world
 
 CARL_MARIO_STEPS_PER_SECOND = 230  # reported by CARL (FAMILIES.md), not measured here
 
@@ -80,7 +80,7 @@ def flat_segments(context, reach, segment):
     zeros = jnp.zeros(jnp.shape(segment), jnp.int32)
     return {
         "gap": zeros,
-        "height": zeros + platformer.BASE_HEIGHT,
+        "height": zeros + world.BASE_HEIGHT,
         "pipe_height": zeros,
         "pipe_at": zeros,
         "bricks": zeros.astype(bool),
@@ -123,12 +123,12 @@ def main() -> None:
 
     # The level is no state: a step generates the segments around the agent from the context hash.
     # Swapping the generator for flat ground shows what that costs.
-    generated = platformer.segments
-    platformer.segments = flat_segments
+    generated = world.segments
+    world.segments = flat_segments
     try:
         flat = measure(crl.make("Platformer"), 4096, steps)[1]
     finally:
-        platformer.segments = generated
+        world.segments = generated
     reset_s, step_s = reset_and_step_seconds(tiles, 4096)
     print("\nThe level's cost (tile observations, 4,096 copies, one device)")
     print(f"generated levels {full:.3g} steps/s, flat ground {flat:.3g} steps/s")

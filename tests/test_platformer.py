@@ -9,7 +9,7 @@ import pytest
 
 import contextrl as crl
 from contextrl.envs.platformer import level_map
-from contextrl.envs.platformer import platformer as pf
+from contextrl.envs.platformer import world as pf
 
 RIGHT, RIGHT_RUN, RIGHT_JUMP, RIGHT_RUN_JUMP, NOOP, LEFT = 2, 3, 4, 5, 0, 6
 MACROS = jnp.array([RIGHT_RUN, RIGHT_RUN_JUMP, NOOP, LEFT, RIGHT, RIGHT_JUMP])

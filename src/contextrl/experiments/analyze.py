@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+import contextrl as crl
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import Interval, interval_estimates
 from contextrl.analysis.report import Figure, Section, render
@@ -272,8 +273,6 @@ def changed_features(plan) -> list[str]:
 
 def environment_section(spec: CommonSpec, changed: Sequence[str] = ()) -> Section:
     """The run's environment: its family, spaces and the features the run changes."""
-    import contextrl as crl
-
     registered = crl.spec(spec.env)
     env = spec.make_env()
     features = env.context_space.features

@@ -18,7 +18,10 @@ from typing import Any
 
 from contextrl.agents import registered_agents
 from contextrl.experiments.analyze import learning_verdict
+from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.executors import connect
+from contextrl.experiments.planning import describe_plan
+from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.runner import prepare, report, resume
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import (
@@ -28,6 +31,7 @@ from contextrl.experiments.spec import (
     load_yaml,
     parse_distribution,
 )
+from contextrl.experiments.tensorboard import TensorBoardLog
 
 # The main job: CartPole with the pole length varied, hidden vs concat agents, a train/test split with
 # held-out and longer/shorter poles; a few minutes on 2 CPU cores.
@@ -244,8 +248,6 @@ def run_command(args: argparse.Namespace) -> int:
             for notice in notices:
                 print(notice, file=sys.stderr)
             if args.dry_run:
-                from contextrl.experiments.planning import describe_plan
-
                 print(describe_plan(spec, calibrate_time=not args.no_calibration))
                 return 0
         connect(args.executor, args.address, on_ray=spec.runs_on_ray)
@@ -256,8 +258,6 @@ def run_command(args: argparse.Namespace) -> int:
         interrupt.run_path = run.path
         logger = None
         if args.log == "tensorboard":
-            from contextrl.experiments.tensorboard import TensorBoardLog
-
             logger = TensorBoardLog(run).start()
             interrupt.on_exit.append(logger.sync)
             print(f"tensorboard: tensorboard --logdir {logger.folder}", file=sys.stderr)
@@ -371,8 +371,6 @@ def report_command(args: argparse.Namespace) -> int:
     verdict: list[str] = []  # one run's learned-or-warn lines, as contextrl run ends with
     try:
         if len(args.run_dir) > 1:
-            from contextrl.experiments.compare import compare_runs
-
             out = Path(args.out or "comparison.html")
             if out.suffix.lower() not in (".html", ".htm"):
                 raise SpecError(f"--out {out}: the comparison is an HTML report; name it *.html")
@@ -409,8 +407,6 @@ def add_report(subparsers) -> None:
 
 
 def eval_command(args: argparse.Namespace) -> int:
-    from contextrl.experiments.reevaluate import evaluate_run
-
     if not args.test:
         raise SpecError("eval: give the new contexts with --test FEATURE=DIST (repeatable)")
     test = {}

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
+import contextrl as crl
 from contextrl.analysis import plots
 from contextrl.analysis.report import Section, render
 from contextrl.experiments.analyze import (
@@ -64,8 +65,6 @@ def _feature_lines(results: pd.DataFrame) -> list[tuple[str, dict]]:
 def _differences(specs: Sequence, plans: Sequence) -> dict[str, list[str]]:
     """What sets the runs' axes apart, per run: protocol, environment and the context features
     their contexts change (``analyze.changed_features``); only the keys on which runs differ."""
-    import contextrl as crl
-
     keys = {
         "protocol": [spec.protocol for spec in specs],
         "env": [crl.spec(spec.env).id for spec in specs],

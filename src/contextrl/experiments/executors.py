@@ -11,7 +11,6 @@ that raises is recorded with its error and traceback and the run goes on.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import functools
 import multiprocessing
 import os
@@ -21,23 +20,12 @@ import traceback
 from collections.abc import Callable, Iterator
 
 from contextrl.experiments.protocols import Plan, expand
-from contextrl.experiments.runs import RunDir
+from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
 from contextrl.xla_flags import xla_cpu_workaround
 
 EXECUTORS = ("local", "processes", "ray")
-
-
-@dataclasses.dataclass
-class Summary:
-    """What an execution did: chunks run, skipped (already finished) and failed."""
-
-    ran: list[int]
-    skipped: list[int]
-    failed: list[int]
-    remaining: list[int]
-    seconds: float
 
 
 class Progress:
@@ -176,7 +164,7 @@ def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
                 f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
             )
         return
-    import ray
+    import ray  # optional and slow to import: only a Ray run loads it
 
     if ray.is_initialized():
         return
@@ -209,7 +197,7 @@ def run_ray(
     cpus_per_chunk: float = 1.0,
 ) -> Summary:
     """Spread the unfinished chunks over a Ray cluster; results are written here as they arrive."""
-    import ray
+    import ray  # optional and slow to import: only a Ray run loads it
 
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, log_to_driver=False)

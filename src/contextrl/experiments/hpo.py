@@ -26,19 +26,23 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from contextrl.agents import ConfigError, evaluate, get_agent, load_checkpoint, save_checkpoint
+from contextrl.agents.networks import ContextInput
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import figure, score_matrices
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
-from contextrl.experiments.runs import write_parquet, write_text
+from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
     _check_int,
     _check_number,
+    parse_spec,
     register_protocol,
     spec_to_dict,
 )
+from contextrl.experiments.trials import host_context_input, host_returns
 
 # Searched when ``search`` is empty: the step sizes and the agent's main trade-off.
 DEFAULT_SEARCH = {
@@ -117,8 +121,6 @@ class HPOSpec(CommonSpec):
         return out
 
     def _config(self, hyper: Mapping[str, float]):
-        from contextrl.agents import ConfigError
-
         options = {**self.agent_options, **hyper, "total_timesteps": self.steps_per_round}
         try:
             return self.agent_entry().config(self.env, options, self.variants[0])
@@ -146,8 +148,6 @@ class HPOSpec(CommonSpec):
 
     def execute(self, run, plan, *, executor, address, max_chunks, progress):
         """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
-        from contextrl.experiments.executors import Summary
-
         if run.finished():
             return Summary([], [0], [], [], 0.0)
         start = time.perf_counter()
@@ -177,10 +177,7 @@ def _trainable(config: dict) -> None:
     compiled functions go to a persistent JAX cache in the run directory (unless the worker already
     has one): a restarted member reads its compiled training instead of compiling it again.
     """
-    from ray import tune
-
-    from contextrl.agents import load_checkpoint, save_checkpoint
-    from contextrl.experiments.spec import parse_spec
+    from ray import tune  # optional and slow to import: only the hpo protocol loads it
 
     if not jax.config.jax_compilation_cache_dir:
         jax.config.update("jax_compilation_cache_dir", config["compilation_cache"])
@@ -230,8 +227,6 @@ def _round_trainer(spec: HPOSpec, env, config, train_set):
     if not spec.host:
         make_train = agent.make_train(config, env, train_set)
         return jax.jit(lambda key, params: make_train(key, None, params).params)
-    from contextrl.experiments.trials import host_context_input
-
     context = host_context_input(spec, spec.variants[0], env, train_set)
     limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
 
@@ -255,16 +250,11 @@ def _round_trainer(spec: HPOSpec, env, config, train_set):
 def _evaluator(spec: HPOSpec, env, config, train_set, agent: str | None = None):
     """``returns(params, contexts, key) -> mean return per context`` of ``agent`` (default: the
     spec's) trained on ``train_set``: compiled on a JAX environment, in host copies otherwise."""
-    from contextrl.agents import evaluate, get_agent
-    from contextrl.agents.networks import ContextInput
-
     entry = get_agent(agent or spec.agent)
     if not spec.host:
         policy = entry.make_policy(config, env, train_set)
         run = jax.jit(lambda p, c, k: evaluate(policy, p, env, c, spec.eval_episodes, k))
         return lambda params, contexts, key: np.asarray(run(params, contexts, key))
-    from contextrl.experiments.trials import host_context_input, host_returns
-
     context = host_context_input(spec, spec.variants[0], env, train_set)
     spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
     act = entry.make_host_policy(config, *spaces, context if entry.trained else ContextInput())
@@ -299,7 +289,7 @@ def seeded_pb2(seed: int, **options):
     own generator (and restored after), and a member keeps its index (its key stream) when it copies
     another's parameters and hyper-parameters.
     """
-    from ray.tune.schedulers.pb2 import PB2
+    from ray.tune.schedulers.pb2 import PB2  # optional and slow to import: only hpo loads it
 
     class SeededPB2(PB2):
         def __init__(self) -> None:
@@ -324,6 +314,7 @@ def seeded_pb2(seed: int, **options):
 
 def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
     """Run PB2; return the schedule (one row per member and round) and the best member's result."""
+    # Ray is optional and slow to import: only the hpo protocol loads it.
     import ray
     from ray import tune
     from ray.tune.search.basic_variant import BasicVariantGenerator
@@ -388,8 +379,6 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
     schedule = pd.DataFrame(schedule_rows).sort_values(["seed", "step"], ignore_index=True)
     best = grid.get_best_result(metric="return", mode="max", scope="last")
     with best.checkpoint.as_directory() as folder:
-        from contextrl.agents import load_checkpoint
-
         params = load_checkpoint(Path(folder) / "params.npz")
     return schedule, {"config": best.config, "params": params}
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
+from contextrl.agents import ConfigError
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.spec import CommonSpec
 from contextrl.experiments.trials import TRAIN_EVAL_CONTEXTS, run_chunk
@@ -32,8 +33,6 @@ def _timesteps(spec: CommonSpec, variant: str) -> int:
 
 def _valid_budget(spec: CommonSpec, budget: int, limit: int) -> int | None:
     """The smallest budget ≥ ``budget`` (doubling) that the agent accepts, at most ``limit``."""
-    from contextrl.agents import ConfigError
-
     while budget <= limit:
         options = {**spec.agent_options, "total_timesteps": budget}
         try:

@@ -18,6 +18,7 @@ import jax
 import numpy as np
 import pandas as pd
 
+from contextrl.agents import evaluate, load_checkpoint
 from contextrl.context.distributions import draw
 from contextrl.experiments.analyze import build_report
 from contextrl.experiments.protocols import (
@@ -58,8 +59,6 @@ def evaluate_run(
 ) -> tuple[Path, pd.DataFrame]:
     """Evaluate every saved agent of the run at ``path`` on ``num_contexts`` contexts drawn from
     ``test`` (feature → distribution); returns the written Parquet file and its rows."""
-    from contextrl.agents import evaluate, load_checkpoint
-
     run = RunDir(path)
     spec = run.spec()
     if not spec.trains_agents:

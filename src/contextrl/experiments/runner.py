@@ -8,9 +8,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from contextrl.experiments.analyze import build_report
-from contextrl.experiments.executors import EXECUTORS, Summary
+from contextrl.experiments.executors import EXECUTORS, run_chunks
 from contextrl.experiments.protocols import expand
-from contextrl.experiments.runs import RunDir
+from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
 from contextrl.xla_flags import xla_cpu_workaround
 
@@ -26,16 +26,20 @@ def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
 def _execute(
     run: RunDir, spec: CommonSpec, executor: str, address, max_chunks, progress
 ) -> Summary:
+    """Run what is unfinished in ``run``: the protocol's own ``execute`` where it has one, else the
+    plan's chunks of trials on ``executor``."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
-    return spec.execute(
-        run,
-        expand(spec),
-        executor=executor,
-        address=address,
-        max_chunks=max_chunks,
-        progress=progress,
-    )
+    plan = expand(spec)
+    options = {
+        "executor": executor,
+        "address": address,
+        "max_chunks": max_chunks,
+        "progress": progress,
+    }
+    if spec.execute is not None:
+        return spec.execute(run, plan, **options)
+    return run_chunks(run, plan, **options, save_params=spec.agent_entry().trained)
 
 
 def run_experiment(

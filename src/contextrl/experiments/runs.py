@@ -19,16 +19,19 @@ any moment leaves only whole files; a chunk counts as finished when its results 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime
 import json
 import os
 import platform
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import yaml
 
+from contextrl.agents import save_checkpoint
 from contextrl.core.files import atomic_write
 from contextrl.experiments.spec import CommonSpec, load_yaml, parse_spec, spec_to_dict
 
@@ -47,13 +50,22 @@ def write_parquet(path: Path, frame: pd.DataFrame) -> Path:
 
 def versions() -> dict[str, str]:
     """Versions of the packages a result depends on."""
-    from importlib import metadata
-
     out = {"python": platform.python_version()}
     for package in ("contextrl", "jax", "jaxlib", "numpy", "gymnasium", "optax", "pandas", "ray"):
         with contextlib.suppress(metadata.PackageNotFoundError):
             out[package] = metadata.version(package)
     return out
+
+
+@dataclasses.dataclass
+class Summary:
+    """What an execution did: chunks run, skipped (already finished) and failed."""
+
+    ran: list[int]
+    skipped: list[int]
+    failed: list[int]
+    remaining: list[int]
+    seconds: float
 
 
 class RunDir:
@@ -123,8 +135,6 @@ class RunDir:
     def save_chunk(self, chunk: int, result, trial_ids: list[str], save_params: bool) -> None:
         """Write a finished chunk: checkpoints and curves first, the results file last (the marker)."""
         if save_params:
-            from contextrl.agents import save_checkpoint
-
             for trial_id, params in zip(trial_ids, result.params, strict=True):
                 if params is not None:
                     save_checkpoint(

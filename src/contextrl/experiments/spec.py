@@ -17,11 +17,13 @@ import dataclasses
 import math
 import re
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import yaml
 
+import contextrl as crl
+from contextrl.agents import ConfigError, get_agent
 from contextrl.context.distributions import (
     Categorical,
     Constant,
@@ -226,6 +228,9 @@ class CommonSpec:
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
     runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
+    # How the protocol runs when not by training its plan's chunks of trials (the runner's default):
+    # ``execute(run, plan, *, executor, address, max_chunks, progress) -> Summary``.
+    execute: ClassVar[Callable[..., Any] | None] = None
 
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
@@ -251,8 +256,6 @@ class CommonSpec:
             raise SpecError(f"variants: {list(self.variants)} repeats a variant")
         env = self.make_env()
         agent = self.agent_entry()
-        from contextrl.agents import ConfigError
-
         try:
             agent.check_env(env, host=self.host)
             for variant in self.variants:
@@ -261,8 +264,6 @@ class CommonSpec:
             raise SpecError(f"agent_options: {error}") from None
         for field in self.env_defaults:
             if getattr(self, field) is None:  # parse_spec found no default for this environment
-                import contextrl as crl
-
                 env_id = crl.spec(self.env).id
                 raise SpecError(
                     f"{field}: the {self.protocol} protocol needs --vary for {env_id} (it has no "
@@ -284,8 +285,6 @@ class CommonSpec:
 
     def agent_entry(self):
         """The registered agent of this spec."""
-        from contextrl.agents import get_agent
-
         try:
             return get_agent(self.agent)
         except KeyError as error:
@@ -298,8 +297,6 @@ class CommonSpec:
     @property
     def host(self) -> bool:
         """Whether the environment is a host environment (trained through the host collector)."""
-        import contextrl as crl
-
         try:
             return crl.spec(self.env).host
         except KeyError as error:
@@ -308,8 +305,6 @@ class CommonSpec:
     def make_env(self):
         """The environment (hidden observation; agents add their own context input). A host
         environment is built once per process and shared: specs only read its spaces."""
-        import contextrl as crl
-
         if self.host:
             if self.env not in _HOST_ENVS:
                 _HOST_ENVS[self.env] = crl.make(self.env)
@@ -321,20 +316,6 @@ class CommonSpec:
     def expand(self) -> tuple[dict, list]:
         """Named context sets and the trials (see :mod:`contextrl.experiments.protocols`)."""
         raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
-
-    def execute(self, run, plan, *, executor, address, max_chunks, progress):
-        """Run what is unfinished in ``run``; the default trains the plan's chunks of trials."""
-        from contextrl.experiments.executors import run_chunks
-
-        return run_chunks(
-            run,
-            plan,
-            executor=executor,
-            address=address,
-            max_chunks=max_chunks,
-            progress=progress,
-            save_params=self.agent_entry().trained,
-        )
 
     def sections(self, plan, results, curves) -> list:
         """The protocol's report sections from its results and training curves; a protocol that
@@ -478,8 +459,6 @@ def _fill_env_defaults(cls: type[CommonSpec], values: dict[str, Any]) -> None:
     """Set each of ``cls.env_defaults`` not given from the environment's entry in ENV_DEFAULTS;
     one the environment has none for stays None, which :meth:`CommonSpec.validate` refuses with
     an example on the environment's own features (after the checks of the env and agent)."""
-    import contextrl as crl
-
     env = values.get("env", cls.__dataclass_fields__["env"].default)
     try:
         defaults = ENV_DEFAULTS.get(crl.spec(env).id, {})
@@ -493,8 +472,6 @@ def _fill_env_defaults(cls: type[CommonSpec], values: dict[str, Any]) -> None:
 def _vary_example(cls: type[CommonSpec], env_id: str) -> str:
     """An example --vary for ``env_id``: its first two scalable features at 0.5-1.5 × their default,
     clipped to their bounds, in the syntax of the protocol's vary field, and every feature's name."""
-    import contextrl as crl
-
     features = crl.spec(env_id).factory().context_space.features
     scalable = [(n, f) for n, f in features.items() if f.kind != "categorical" and f.default]
     ranges = [

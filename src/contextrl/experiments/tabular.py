@@ -26,7 +26,7 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import figure, natural_key
-from contextrl.experiments.runs import write_parquet
+from contextrl.experiments.runs import Summary, write_parquet
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
@@ -300,8 +300,6 @@ class TabularSpec(CommonSpec):
 
     def execute(self, run, plan, *, executor, address, max_chunks, progress):
         """Solve every cMDP here (seconds; no executor needed) unless already done."""
-        from contextrl.experiments.executors import Summary
-
         if run.finished():
             return Summary([], [0], [], [], 0.0)
         start = time.perf_counter()

@@ -21,7 +21,7 @@ class TensorBoardLog:
     """Writes finished chunks of ``run`` under ``RUN/tensorboard`` (one event folder per trial)."""
 
     def __init__(self, run: RunDir, every: float = 1.0):
-        from tensorboardX import SummaryWriter
+        from tensorboardX import SummaryWriter  # optional: only --log tensorboard loads it
 
         self.run, self.every = run, every
         self.folder = run.path / "tensorboard"

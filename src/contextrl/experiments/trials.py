@@ -17,6 +17,9 @@ import jax
 import numpy as np
 import pandas as pd
 
+from contextrl.agents import evaluate, get_agent
+from contextrl.agents.host import HostCollector
+from contextrl.agents.networks import ContextInput, context_input
 from contextrl.experiments.protocols import (
     Plan,
     context_columns,
@@ -70,8 +73,6 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool):
     )
     if key in _COMPILED:
         return _COMPILED[key]
-    from contextrl.agents import evaluate, get_agent
-
     episodes = spec.eval_episodes
     config = spec.agent_config(variant)
     policy = agent.make_policy(config, env, template)
@@ -115,8 +116,6 @@ def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_ba
 
 def host_context_input(spec, variant: str, env, template):
     """What a host-trained agent of ``variant`` sees of the context (nothing for an untrained one)."""
-    from contextrl.agents.networks import ContextInput, context_input
-
     trained = spec.agent_entry().trained
     return (context_input(variant, env.context_space, template) if trained else None) or (
         ContextInput()
@@ -125,8 +124,6 @@ def host_context_input(spec, variant: str, env, template):
 
 def host_returns(spec, context, policy, params, contexts, episodes: int, key) -> np.ndarray:
     """Mean return per context of a host policy, one host copy per context."""
-    from contextrl.agents.host import HostCollector
-
     limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
     seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
     with HostCollector(
@@ -145,9 +142,6 @@ def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
     """The host path of a chunk: each trial trains on the shared host collector (the agent's
     ``train_host``), then acts in host copies of its test and training contexts; same outputs as
     :func:`_train_and_evaluate`."""
-    from contextrl.agents import get_agent
-    from contextrl.agents.networks import ContextInput
-
     spec = plan.spec
     agent = spec.agent_entry()
     variant = trials[0].variant

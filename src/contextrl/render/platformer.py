@@ -10,7 +10,7 @@ import jax
 import numpy as np
 
 from contextrl.envs.platformer import sprites
-from contextrl.envs.platformer.platformer import ROWS
+from contextrl.envs.platformer.world import ROWS
 from contextrl.render.canvas import Canvas
 
 VIEW_COLUMNS = 32

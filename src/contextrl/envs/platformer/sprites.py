@@ -10,7 +10,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from contextrl.envs.platformer import platformer as world
+from contextrl.envs.platformer import world
 
 PIXELS = 84  # the pixel observation is PIXELS × PIXELS RGB
 TILE_PIXELS = 6  # … showing 14 × 14 tiles

@@ -1,4 +1,7 @@
-"""A contextual platformer in JAX (the paper's Mario): procedural levels generated from the context.
+"""The platformer's world in JAX (the paper's Mario): its context, procedural levels and physics.
+
+:mod:`env` makes it an environment and :mod:`sprites` draws it; both build on this module, which
+imports neither.
 
 The level is never stored. Every tile is a pure function of the context and its column: the level is cut
 into segments of ``SEGMENT`` columns, and each segment's layout (gap, ground height, pipe, floating
@@ -21,15 +24,12 @@ far it came.
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.features import ContextBase, context_type, feature
-from contextrl.core.env import Env
-from contextrl.core.spaces import Box, Discrete
 
 # ---- the world ---------------------------------------------------------------------------------------
 ROWS = 16  # tiles high
@@ -472,86 +472,7 @@ def level_map(context, width: int | None = None) -> np.ndarray:
     return np.asarray(tiles(context, reach, columns, rows))
 
 
-# ---- the environment ---------------------------------------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class Platformer(Env):
-    """Run right to the flag over gaps, steps and pipes, stomping or avoiding enemies (CARL's Mario).
-
-    ``obs="tiles"`` (default): the tiles around the agent, one channel per kind (solid, hazard, enemy,
-    flag) in a window of 12 columns × 10 rows, then the agent's speed, position in its tile and form.
-    ``obs="pixels"``: an 84×84 RGB picture around the agent, flattened, values in [0, 1].
-    """
-
-    obs: str = "tiles"
-
-    context_type = PlatformerContext
-    default_max_steps = 2000
-    observation_kinds: ClassVar[tuple[str, ...]] = ("tiles", "pixels")
-
-    def __post_init__(self):
-        if self.obs not in self.observation_kinds:
-            raise ValueError(f"obs must be one of {list(self.observation_kinds)}, got {self.obs!r}")
-        super().__post_init__()
-
-    @property
-    def action_space(self) -> Discrete:
-        return Discrete(len(ACTIONS))
-
-    @property
-    def base_observation_space(self) -> Box:
-        if self.obs == "pixels":
-            from contextrl.envs.platformer.sprites import PIXELS
-
-            size = PIXELS * PIXELS * 3
-            return Box(np.zeros(size), np.ones(size))
-        size = VIEW_COLS * VIEW_ROWS * len(OBS_CHANNELS)
-        low = np.concatenate([np.zeros(size), [-1, -1, 0, 0, 0, 0, 0, 0]])
-        return Box(low, np.ones(size + len(AGENT_FEATURES)))
-
-    def init(self, key, context) -> PlatformerState:
-        zero = jnp.zeros((), jnp.float32)
-        false = jnp.zeros((), bool)
-        return PlatformerState(
-            x=jnp.float32(START_X),
-            y=jnp.float32(BASE_HEIGHT),
-            vx=zero,
-            vy=zero,
-            on_ground=jnp.ones((), bool),
-            facing=jnp.ones((), jnp.int32),
-            hits=jnp.zeros((), jnp.int32),
-            invulnerable=jnp.zeros((), jnp.int32),
-            clock=jnp.zeros((), jnp.int32),
-            defeated=jnp.zeros((DEFEATED_WORDS,), jnp.uint32),
-            fireball=jnp.zeros((3,), jnp.float32),
-            fireball_steps=jnp.zeros((), jnp.int32),
-            completed=false,
-            died=false,
-        )
-
-    def transition(self, key, state: PlatformerState, action, context):
-        return step_physics(state, action, context)
-
-    def observe(self, state: PlatformerState, context) -> jax.Array:
-        if self.obs == "pixels":
-            from contextrl.envs.platformer.sprites import PIXELS, TILE_PIXELS, draw_view
-
-            view = PIXELS // TILE_PIXELS
-            frame = draw_view(state, context, view, view, TILE_PIXELS)
-            return frame.reshape(-1).astype(jnp.float32) / 255.0
-        return tile_observation(state, context)
-
-    def step_info(self, state: PlatformerState, context) -> dict:
-        """Whether the level was completed or the agent died, and how far it came (tiles and fraction)."""
-        distance = state.x - START_X
-        flag = context.level_width - FLAG_FROM_END - START_X
-        return {
-            "completed": state.completed,
-            "died": state.died,
-            "distance": distance,
-            "progress": jnp.clip(distance / flag, 0.0, 1.0),
-        }
-
-
+# ---- physics -----------------------------------------------------------------------------------------
 def is_defeated(defeated, segment) -> jax.Array:
     """Whether the enemy of ``segment`` (int array) was defeated, from the bits ``defeated``."""
     segment = jnp.asarray(segment)
