@@ -22,7 +22,7 @@ def test_checkpoint_names_round_trip_and_rebuild_a_policy(tmp_path):
     env = crl.make("CartPole", max_steps=40)
     space = env.context_space
     contexts = space.stack([space.make(length=0.3), space.make(length=0.7)])
-    config = ppo.PPOConfig(obs_context="concat_varying", hidden_sizes=(8, 8), total_timesteps=4096)
+    config = ppo.PPOConfig(variant="concat_varying", hidden_sizes=(8, 8), total_timesteps=4096)
     params = ppo.init_params(config, env, contexts, jax.random.key(3))
     written = save_checkpoint(
         tmp_path / "runs" / "ppo_seed0",

@@ -256,7 +256,6 @@ def _evaluator(spec: HPOSpec, env, config, train_set, agent: str | None = None):
     """``returns(params, contexts, key) -> mean return per context`` of ``agent`` (default: the
     spec's) trained on ``train_set``: compiled on a JAX environment, in host copies otherwise."""
     from contextrl.agents import evaluate, get_agent
-    from contextrl.agents.networks import ContextInput
 
     entry = get_agent(agent or spec.agent)
     if not spec.host:
@@ -266,8 +265,7 @@ def _evaluator(spec: HPOSpec, env, config, train_set, agent: str | None = None):
     from contextrl.experiments.trials import host_context_input, host_returns
 
     context = host_context_input(spec, spec.variants[0], env, train_set)
-    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
-    act = entry.make_host_policy(config, *spaces, context if entry.trained else ContextInput())
+    act = jax.jit(entry.make_policy(config, env, train_set).act)
 
     def returns(params, contexts, key):
         return host_returns(spec, context, act, params, contexts, spec.eval_episodes, key)

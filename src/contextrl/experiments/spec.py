@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 import yaml
 
+from contextrl.agents.networks import VARIANTS
 from contextrl.context.distributions import (
     Categorical,
     Constant,
@@ -34,7 +35,6 @@ from contextrl.context.distributions import (
 )
 from contextrl.context.features import ContextError
 
-VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")
 DISTRIBUTION_NAMES = {
     "uniform": Uniform,
     "log_uniform": LogUniform,
