@@ -103,3 +103,22 @@ def test_host_collector_curve_is_never_nan():
         collector.step(np.zeros(2, np.int64))
         row = collector.close_period()
         assert row["episode_return"] == 3.0 and row["episodes_finished"] == 0
+
+
+def test_host_curve_has_a_return_per_context():
+    """The host loop logs episodes in the JAX path's EpisodeLog, so its curve has a return per
+    context id, NaN until that context's first episode ends (a time limit of 3: every return is 3)."""
+    from contextrl.agents.host import HostCollector
+
+    env = crl.make("CartPole")
+    contexts = env.context_space.stack([env.context(length=0.3), env.context(length=0.6)])
+    with HostCollector(
+        "CartPole", 2, contexts, selector="round_robin", seed=0, max_steps=3
+    ) as collector:
+        assert np.isnan(collector.close_period()["context_return"]).all()
+        for _ in range(3):
+            collector.step(np.zeros(2, np.int64))
+        row = collector.close_period()
+        episodes = collector.episodes()
+    np.testing.assert_array_equal(row["context_return"], [3.0, 3.0])
+    np.testing.assert_array_equal(episodes["context_id"], [0, 1])

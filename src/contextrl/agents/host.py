@@ -7,9 +7,9 @@ public vector API, for environments that are not JAX functions (dm_control, Box2
 The collector owns what every agent's host training needs and nothing algorithm-specific: the vector
 env (``gymnasium.make_vec("contextrl/<Id>-v0", num_envs=N, contexts=...)``, same-step auto-reset), the
 agent's context input read from ``info["context"]`` and normalised by the feature bounds as on the JAX
-path, and the episode bookkeeping behind training curves (the :class:`EpisodeLog` of the JAX path). :func:`train_on_host` is the one training
-loop over it (warm-up, rows of updates, metrics, progress); an agent adds only a :class:`HostLearner`
-(acting, storing and learning).
+path, and the episode bookkeeping behind training curves (the JAX path's :class:`EpisodeLog`).
+:func:`train_on_host` is the one training loop over it (warm-up, rows of updates, metrics, progress);
+an agent adds only a :class:`HostLearner` (acting, storing and learning).
 """
 
 from __future__ import annotations
@@ -48,9 +48,17 @@ class HostStep:
         return self.terminated | self.truncated
 
 
-# The episode log's updates, compiled once: the collector calls them every step and every row.
-_record = jax.jit(EpisodeLog.record)
+@jax.jit
+def _record_steps(log: EpisodeLog, rewards, dones, context_ids, steps) -> EpisodeLog:
+    """``log`` with buffered vector steps added in order: one compiled call per metrics row instead
+    of one per step (a call costs about as much as stepping CartPole's copies)."""
+    return jax.lax.scan(
+        lambda log, step: (log.record(*step), None), log, (rewards, dones, context_ids, steps)
+    )[0]
+
+
 _close_period = jax.jit(EpisodeLog.close_period)
+_FLUSH_EVERY = 4096  # vector steps buffered at most before they go into the log
 
 
 class HostCollector:
@@ -86,7 +94,6 @@ class HostCollector:
             **env_kwargs,
         )
         self.num_envs = num_envs
-        self.env_name = env_id
         self.space = (
             getattr(self.envs, "context_space", None) or self.envs.get_attr("context_space")[0]
         )
@@ -97,22 +104,15 @@ class HostCollector:
         self.steps = 0
         ids = resolve_contexts(self.space, contexts).ids
         self._set_index = {user_id: index for index, user_id in enumerate(ids)}
-        self.log = EpisodeLog.create(num_envs, episode_log_size, len(ids))
+        self._log = EpisodeLog.create(num_envs, episode_log_size, len(ids))
+        self._pending: list[tuple] = []  # (reward, done, context id, step) not yet in the log
         obs, info = self.envs.reset(seed=seed)
         self.obs, self.context = np.asarray(obs, np.float32), self._context_input(info)
 
     @property
-    def single_action_space(self):
-        return self.envs.single_action_space
-
-    @property
-    def single_observation_space(self):
-        return self.envs.single_observation_space
-
-    @property
     def agent_inputs(self) -> tuple[Any, Any, ContextInput]:
         """(observation space, action space, context input) of one copy: what agents build from."""
-        return self.single_observation_space, self.single_action_space, self.context_input
+        return self.envs.single_observation_space, self.envs.single_action_space, self.context_input
 
     def _context_input(self, info) -> np.ndarray:
         columns = []
@@ -141,20 +141,30 @@ class HostCollector:
         context_id = np.full(self.num_envs, -1, np.int32)
         for i in np.flatnonzero(done):
             context_id[i] = self._set_index.get(info["final_info"]["context_id"][i], -1)
-        self.log = _record(self.log, reward, done, context_id, self.steps)
+        self._pending.append((reward, done, context_id, self.steps))
+        if len(self._pending) == _FLUSH_EVERY:
+            self._flush()
         self.obs, self.context = obs, self._context_input(info)
         return HostStep(reward, terminated, truncated, final, obs, self.context)
+
+    def _flush(self) -> None:
+        if self._pending:
+            columns = [np.stack(column) for column in zip(*self._pending, strict=True)]
+            self._log = _record_steps(self._log, *columns)
+            self._pending = []
 
     def close_period(self) -> dict[str, Any]:
         """The training-curve row of the episodes that ended since the last call (see
         :meth:`EpisodeLog.close_period`: never NaN) and the steps so far."""
-        self.log, row = _close_period(self.log)
+        self._flush()
+        self._log, row = _close_period(self._log)
         return {"step": self.steps, **jax.device_get(row)}
 
     def episodes(self) -> dict[str, Any]:
         """The most recent episodes (up to the log's size), oldest first, as in
         ``TrainResult.metrics``."""
-        episodes = jax.device_get(self.log.episodes())
+        self._flush()
+        episodes = jax.device_get(self._log.episodes())
         kept = min(int(episodes["total"]), len(episodes["return"]))
         return {name: v if name == "total" else v[:kept] for name, v in episodes.items()}
 
