@@ -38,7 +38,7 @@ def main() -> None:
             total_timesteps=args.steps,
             num_envs=8,
             learning_rate=2.5e-3,
-            obs_context=mode,
+            variant=mode,
             progress_every=20 if args.progress else 0,
         )
         start = time.perf_counter()

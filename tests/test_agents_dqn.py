@@ -95,7 +95,7 @@ def test_n_step_returns_stop_at_episode_ends():
 
 @pytest.mark.parametrize("distributional", [False, True])
 def test_concat_q_values_depend_on_the_context(cartpole, distributional):
-    config = dqn.DQNConfig(obs_context="concat_all", distributional=distributional)
+    config = dqn.DQNConfig(variant="concat_all", distributional=distributional)
     context = cartpole.default_context()
     params = dqn.init_params(config, cartpole, context, jax.random.key(2))
     q = dqn.q_values(config, cartpole, context)
@@ -117,7 +117,7 @@ def test_specialists_and_small_runs_record_their_contexts(cartpole):
         learning_starts=200,
         hidden_sizes=(8,),
         log_every=100,
-        obs_context="concat_varying",
+        variant="concat_varying",
         batch_size=16,
     )
     contexts = crl.sample(cartpole, {"length": crl.Uniform(0.1, 1.0)}, 2, jax.random.key(3))
@@ -142,7 +142,7 @@ def test_specialists_and_small_runs_record_their_contexts(cartpole):
         (dict(distributional=True, v_min=10.0, v_max=0.0), "C51 needs v_min < v_max"),
         (dict(tau=0.0), "tau must be > 0"),
         (dict(total_timesteps=1000, learning_starts=5000), "leaves no gradient step"),
-        (dict(obs_context="all"), "obs_context: unknown mode 'all'"),
+        (dict(variant="all"), "variant: unknown 'all'; choose one of"),
     ],
 )
 def test_bad_config_fails_before_compilation(cartpole, change, message):
@@ -185,7 +185,7 @@ def test_dqn_and_c51_through_the_host_collector(cartpole, distributional):
         hidden_sizes=(16,),
         log_every=200,
         distributional=distributional,
-        obs_context="concat_varying",
+        variant="concat_varying",
     )
     result = dqn.train_gymnasium(config, "CartPole", contexts, jax.random.key(0), seed=3)
     assert result.metrics["step"].tolist() == [400, 600, 800, 1000, 1200]
@@ -196,11 +196,6 @@ def test_dqn_and_c51_through_the_host_collector(cartpole, distributional):
     assert set(ids) == {0, 1}
     # the short pole (id 0) falls sooner than the long one (id 1) under the early, random-ish policy
     assert episodes["length"][ids == 0].mean() * 1.5 < episodes["length"][ids == 1].mean()
-    act = dqn.make_host_policy(
-        config,
-        cartpole.action_space,
-        cartpole.observation_space,
-        dqn._networks(config, cartpole, contexts).context,
-    )
+    act = dqn.make_policy(config, cartpole, contexts).act  # a batch of host inputs
     actions = act(result.params, np.zeros((3, 4), np.float32), np.zeros((3, 1), np.float32), None)
     assert actions.shape == (3,) and set(np.asarray(actions)) <= {0, 1}

@@ -49,7 +49,7 @@ def shared(cartpole):
     config = ppo.PPOConfig(
         **{**TINY, "total_timesteps": 1024},
         **TINY_NET,
-        obs_context="concat_varying",
+        variant="concat_varying",
         episode_log_size=5000,
     )
     train = ppo.make_train(config, cartpole, contexts)
@@ -133,7 +133,7 @@ def test_concat_varying_sees_only_the_varying_feature(cartpole, shared):
 @pytest.mark.parametrize(("mode", "differs"), [("concat_all", True), ("hidden", False)])
 def test_context_reaches_the_network(cartpole, mode, differs):
     """Freshly initialised agents: concat_all reacts to any feature, hidden to none."""
-    config = ppo.PPOConfig(**TINY, **TINY_NET, obs_context=mode)
+    config = ppo.PPOConfig(**TINY, **TINY_NET, variant=mode)
     context = cartpole.default_context()
     params = ppo.init_params(config, cartpole, context, jax.random.key(5))
     distribution = ppo.action_distribution(config, cartpole, context)
@@ -147,7 +147,7 @@ def test_context_reaches_the_network(cartpole, mode, differs):
 def test_gated_agent_learns_a_context_gate(cartpole):
     """The gate starts neutral (as a hidden agent) and becomes context-dependent through training."""
     contexts = crl.sample(cartpole, {"length": crl.Uniform(0.1, 4.0)}, 8, jax.random.key(5))
-    config = ppo.PPOConfig(**TINY, **TINY_NET, obs_context="gated", learning_rate=1e-2)
+    config = ppo.PPOConfig(**TINY, **TINY_NET, variant="gated", learning_rate=1e-2)
     distribution = ppo.action_distribution(config, cartpole, contexts)
     obs = jnp.array([0.01, 0.2, -0.03, -0.1])
     short, long = cartpole.context(length=0.1), cartpole.context(length=4.0)
@@ -168,7 +168,7 @@ def test_gated_agent_learns_a_context_gate(cartpole):
         (dict(learning_rate=float("nan")), "learning_rate must be finite"),
         (dict(num_envs=0), "num_envs must be > 0"),
         (dict(num_envs=2.5), "num_envs must be an integer"),
-        (dict(obs_context="visible"), "obs_context: unknown mode 'visible'"),
+        (dict(variant="visible"), "variant: unknown 'visible'; choose one of"),
         (dict(gamma=1.5), "gamma must be in [0, 1]"),
         (dict(num_minibatches=3), "num_minibatches (3) must divide"),
         (dict(total_timesteps=10), "less than one rollout"),
@@ -185,7 +185,7 @@ def test_bad_config_fails_before_compilation(cartpole, change, message):
 
 
 def test_observation_mode_the_env_cannot_give(cartpole):
-    config = ppo.PPOConfig(**TINY, obs_context="concat_varying")
+    config = ppo.PPOConfig(**TINY, variant="concat_varying")
     with pytest.raises(ConfigError, match="no context feature varies"):
         ppo.make_train(config, cartpole, cartpole.default_context())
     with pytest.raises(ConfigError, match="already appends"):
@@ -202,7 +202,7 @@ def test_observation_mode_the_env_cannot_give(cartpole):
 def test_continuous_actions_resampled_contexts_and_progress(capsys):
     """A Gaussian policy on Pendulum with masses resampled at each reset (id −1), progress printed."""
     env = crl.make("Pendulum")
-    config = ppo.PPOConfig(**TINY, **TINY_NET, obs_context="concat_varying", progress_every=2)
+    config = ppo.PPOConfig(**TINY, **TINY_NET, variant="concat_varying", progress_every=2)
     spec = {"m": crl.Uniform(0.5, 1.5)}
     result = jax.jit(ppo.make_train(config, env, spec))(jax.random.key(11))
     jax.effects_barrier()
@@ -249,7 +249,7 @@ def test_ppo_through_the_gymnasium_vector_adapter(cartpole):
         [cartpole.context(length=0.1), cartpole.context(length=2.0)]
     )
     config = ppo.PPOConfig(
-        total_timesteps=2048, num_envs=4, num_steps=64, **TINY_NET, obs_context="concat_varying"
+        total_timesteps=2048, num_envs=4, num_steps=64, **TINY_NET, variant="concat_varying"
     )
     result = ppo.train_gymnasium(config, "CartPole", contexts, jax.random.key(0), seed=3)
     episodes = result.metrics["episodes"]

@@ -41,7 +41,7 @@ def test_vmapped_seeds_equal_single_runs(pendulum):
         learning_starts=200,
         log_every=100,
         batch_size=16,
-        obs_context="gated",
+        variant="gated",
     )
     contexts = crl.sample(pendulum, {"g": crl.Uniform(5.0, 15.0)}, 4, jax.random.key(2))
     train = sac.make_train(config, pendulum, contexts)
@@ -64,7 +64,7 @@ def test_context_reaches_the_policy(pendulum):
     context = pendulum.default_context()
     heavy = pendulum.context(m=3.0, g=15.0)
     for mode, differs in (("concat_all", True), ("hidden", False), ("gated", False)):
-        config = sac.SACConfig(obs_context=mode, hidden_sizes=(16,))
+        config = sac.SACConfig(variant=mode, hidden_sizes=(16,))
         params = sac.init_params(config, pendulum, context, jax.random.key(4))
         if mode == "concat_all":  # the initial head is small: scale it so the action moves
             params["actor"]["out"]["kernel"] = params["actor"]["out"]["kernel"] * 100
@@ -82,7 +82,7 @@ def test_context_reaches_the_policy(pendulum):
         (dict(tau=0.0), "tau must be > 0"),
         (dict(gamma=-0.1), "gamma must be >= 0"),
         (dict(total_timesteps=5000), "leaves no full logging period"),
-        (dict(obs_context="concat"), "obs_context: unknown mode 'concat'"),
+        (dict(variant="concat"), "variant: unknown 'concat'; choose one of"),
     ],
 )
 def test_bad_config_fails_before_compilation(pendulum, change, message):
@@ -117,7 +117,7 @@ def test_host_training_is_reproducible_and_follows_the_schedule(pendulum):
         hidden_sizes=(16,),
         log_every=100,
         policy_frequency=2,
-        obs_context="concat_varying",
+        variant="concat_varying",
     )
 
     def run(key):

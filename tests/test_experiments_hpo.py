@@ -26,7 +26,9 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
         parse_spec({"protocol": "hpo", "population": 1})
 
 
-@pytest.fixture(scope="module")  # the suite's costliest setup: made once (make test: --dist loadfile)
+@pytest.fixture(
+    scope="module"
+)  # the suite's costliest setup: made once (make test: --dist loadfile)
 def pb2_runs(tmp_path_factory):
     """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. Ray's
     workers inherit the suite's JAX compilation cache (conftest.py), so the second run loads the

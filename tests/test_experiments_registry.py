@@ -29,7 +29,7 @@ def test_registry_lists_agents_and_refuses_mismatches():
         parse_spec({"protocol": "visibility", "agent": "c51", "agent_options": {"lr": 1}})
     # C51 on CartPole starts from the paper's setting; the user's options override it
     c51 = get_agent("c51").config("CartPole", {"v_max": 200.0}, "concat_all")
-    assert c51 == dqn.paper_config("CartPole", v_max=200.0, obs_context="concat_all")
+    assert c51 == dqn.paper_config("CartPole", v_max=200.0, variant="concat_all")
     # where the paper has no setting: plain C51
     assert get_agent("c51").config("MountainCarContinuous", {}).distributional
 

@@ -16,13 +16,14 @@ from contextrl.agents import (
     save_checkpoint,
 )
 from contextrl.agents.common import EpisodeLog
+from contextrl.agents.saved import _rebuild_config
 
 
 def test_checkpoint_names_round_trip_and_rebuild_a_policy(tmp_path):
     env = crl.make("CartPole", max_steps=40)
     space = env.context_space
     contexts = space.stack([space.make(length=0.3), space.make(length=0.7)])
-    config = ppo.PPOConfig(obs_context="concat_varying", hidden_sizes=(8, 8), total_timesteps=4096)
+    config = ppo.PPOConfig(variant="concat_varying", hidden_sizes=(8, 8), total_timesteps=4096)
     params = ppo.init_params(config, env, contexts, jax.random.key(3))
     written = save_checkpoint(
         tmp_path / "runs" / "ppo_seed0",
@@ -55,6 +56,13 @@ def test_checkpoint_names_round_trip_and_rebuild_a_policy(tmp_path):
     save_checkpoint(tmp_path / "bare", params, config)
     with pytest.raises(ValueError, match="does not name its agent and env"):
         load_policy(tmp_path / "bare")
+
+
+def test_configs_saved_before_the_variant_rename_load():
+    """Checkpoints written when the field was called obs_context rebuild with it as ``variant``."""
+    old = {"obs_context": "concat_all", "hidden_sizes": [8, 8], "total_timesteps": 4096}
+    config = _rebuild_config(ppo.PPOConfig, old)
+    assert config == ppo.PPOConfig(variant="concat_all", hidden_sizes=(8, 8), total_timesteps=4096)
 
 
 def test_episode_log_curve_is_never_nan():
@@ -103,3 +111,22 @@ def test_host_collector_curve_is_never_nan():
         collector.step(np.zeros(2, np.int64))
         row = collector.close_period()
         assert row["episode_return"] == 3.0 and row["episodes_finished"] == 0
+
+
+def test_host_curve_has_a_return_per_context():
+    """The host loop logs episodes in the JAX path's EpisodeLog, so its curve has a return per
+    context id, NaN until that context's first episode ends (a time limit of 3: every return is 3)."""
+    from contextrl.agents.host import HostCollector
+
+    env = crl.make("CartPole")
+    contexts = env.context_space.stack([env.context(length=0.3), env.context(length=0.6)])
+    with HostCollector(
+        "CartPole", 2, contexts, selector="round_robin", seed=0, max_steps=3
+    ) as collector:
+        assert np.isnan(collector.close_period()["context_return"]).all()
+        for _ in range(3):
+            collector.step(np.zeros(2, np.int64))
+        row = collector.close_period()
+        episodes = collector.episodes()
+    np.testing.assert_array_equal(row["context_return"], [3.0, 3.0])
+    np.testing.assert_array_equal(episodes["context_id"], [0, 1])

@@ -17,6 +17,7 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
+
 def contextrl(*argv, cwd, umask=None, timeout=300):
     """Run ``contextrl ARGV`` in a fresh interpreter; returns the CompletedProcess."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
@@ -273,7 +274,7 @@ def test_load_policy_rebuilds_a_saved_agent(trained_run):
     from contextrl.agents import load_checkpoint, load_policy, ppo
 
     saved = load_policy(trained_run / "checkpoints" / "visibility-concat_varying-s0")  # no .npz
-    assert isinstance(saved.config, ppo.PPOConfig) and saved.config.obs_context == "concat_varying"
+    assert isinstance(saved.config, ppo.PPOConfig) and saved.config.variant == "concat_varying"
     assert saved.env_id == "CartPole" and saved.agent == "ppo" and saved.env.max_steps == 30
     lengths = np.asarray(saved.train_contexts.length)
     assert len(lengths) == 3 and lengths.min() >= 0.3 and lengths.max() <= 0.6

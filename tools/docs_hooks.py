@@ -98,18 +98,20 @@ def environments_table() -> str:
 
 
 def field_docstrings(cls: type) -> dict[str, str]:
-    """The string literal written under each annotated field of ``cls``'s class body."""
-    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    """The string literal written under each annotated field of ``cls``'s class body or, for a field
+    it inherits or only gives a new default, of its nearest dataclass base."""
     docs = {}
-    for statement, following in zip(body, body[1:], strict=False):
-        if (
-            isinstance(statement, ast.AnnAssign)
-            and isinstance(statement.target, ast.Name)
-            and isinstance(following, ast.Expr)
-            and isinstance(following.value, ast.Constant)
-            and isinstance(following.value.value, str)
-        ):
-            docs[statement.target.id] = " ".join(following.value.value.split())
+    for klass in reversed([k for k in cls.__mro__ if dataclasses.is_dataclass(k)]):
+        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0].body
+        for statement, following in zip(body, body[1:], strict=False):
+            if (
+                isinstance(statement, ast.AnnAssign)
+                and isinstance(statement.target, ast.Name)
+                and isinstance(following, ast.Expr)
+                and isinstance(following.value, ast.Constant)
+                and isinstance(following.value.value, str)
+            ):
+                docs[statement.target.id] = " ".join(following.value.value.split())
     return docs
 
 

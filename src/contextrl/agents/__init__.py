@@ -1,7 +1,7 @@
 """Baseline agents in JAX (PPO, DQN/C51, SAC): each training run is one compiled function.
 
 from contextrl.agents import ppo, evaluate
-train = ppo.make_train(ppo.PPOConfig(obs_context="concat_varying"), env, train_contexts)
+train = ppo.make_train(ppo.PPOConfig(variant="concat_varying"), env, train_contexts)
 result = jax.jit(jax.vmap(train))(jax.random.split(key, 10))      # 10 seeds at once
 policy = ppo.make_policy(config, env, train_contexts)
 returns = evaluate(policy, params, env, test_contexts, episodes=10, key=key)
@@ -9,15 +9,17 @@ returns = evaluate(policy, params, env, test_contexts, episodes=10, key=key)
 
 from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_checkpoint
+from contextrl.agents.common import Policy
 from contextrl.agents.evaluation import evaluate, evaluate_episodes
-from contextrl.agents.networks import CONTEXT_MODES, ConfigError
+from contextrl.agents.networks import VARIANTS, ConfigError
 from contextrl.agents.registry import Agent, get_agent, register_agent, registered_agents
 from contextrl.agents.saved import SavedPolicy, load_policy
 
 __all__ = [
     "Agent",
+    "Policy",
     "SavedPolicy",
-    "CONTEXT_MODES",
+    "VARIANTS",
     "ConfigError",
     "checkpoint_info",
     "evaluate",

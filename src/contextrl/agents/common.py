@@ -1,4 +1,5 @@
-"""What every training loop shares: the contextual environment, episode bookkeeping and progress.
+"""What every agent shares: the config fields, what networks are built from, the policy type, the
+contextual environment, episode bookkeeping and progress.
 
 Episode bookkeeping lives inside the compiled loop: running returns per environment copy, a ring
 buffer of the most recent episodes (return, length, context id, the global step at which it ended)
@@ -16,18 +17,89 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contextrl.agents.networks import ConfigError
-from contextrl.context.features import ContextBase
+from contextrl.agents.networks import (
+    ConfigError,
+    ContextInput,
+    check_fraction,
+    check_hidden_sizes,
+    check_positive,
+    check_variant,
+    context_input,
+)
+from contextrl.context.features import ContextBase, ContextSpace
 from contextrl.context.selectors import FromSet, make_selector
 from contextrl.core.contextual import ContextualEnv, make_provider
 from contextrl.core.env import Env
+from contextrl.core.host import HostEnv
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentConfig:
+    """The fields and checks every agent's config shares; an agent's config adds its own (and may
+    change a default by declaring the field again)."""
+
+    total_timesteps: int = 100_000
+    """Environment steps over all copies, warm-up included; rounded down to whole metrics rows."""
+    num_envs: int = 4
+    """Environment copies stepped in parallel."""
+    gamma: float = 0.99
+    """Discount factor."""
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    """Widths of the hidden layers (of each network: actor, critics or Q-network)."""
+    activation: str = "tanh"
+    """Hidden activation: "tanh" or "relu"."""
+    variant: str = "hidden"
+    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
+    context_selector: str = "round_robin"
+    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
+    or "static"; copy i of N runs global episodes i, i + N, …"""
+    episode_log_size: int = 1000
+    """How many of the most recent episodes the result keeps individually."""
+    progress_every: int = 0
+    """Print a progress line every this many metrics rows (0: silent)."""
+
+    def __post_init__(self):
+        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+
+    def validate(self) -> None:
+        """Raise ConfigError for any value that cannot train."""
+        for name in ("total_timesteps", "num_envs", "episode_log_size"):
+            check_positive(name, getattr(self, name), integer=True)
+        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
+        check_fraction("gamma", self.gamma)
+        check_hidden_sizes(self.hidden_sizes, self.activation)
+        check_variant(self.variant)
+
+
+def agent_inputs(
+    config: AgentConfig, env: Any, train_contexts: Any, agent: str, *, host: bool = True
+) -> tuple[Any, Any, ContextInput]:
+    """(observation space, action space, context input): all an agent's networks are built from, for
+    a JAX environment (refused when it shows its own context) or, where ``host``, a host one."""
+    config.validate()
+    if not (host and isinstance(env, HostEnv)):
+        check_env(env, agent)
+    context = context_input(config.variant, env.context_space, train_contexts)
+    return env.base_observation_space, env.action_space, context
+
+
+@dataclasses.dataclass(frozen=True)
+class Policy:
+    """An agent's actions: ``act(params, obs, context_vector, key)`` for one observation or a batch
+    (host loops call it with the context input they read from gymnasium's ``info``); called as
+    ``policy(params, obs, ctx, key)`` it reads the context input from a JAX environment's context."""
+
+    act: Callable
+    context: ContextInput
+    space: ContextSpace
+
+    def __call__(self, params, obs, ctx, key):
+        return self.act(params, obs, self.context.vector(self.space, ctx), key)
 
 
 def check_env(env: Any, agent: str) -> None:
     """A contextrl JAX environment whose observation is not already extended by the env itself."""
     if not isinstance(env, Env):
-        from contextrl.core.host import HostEnv
-
         if isinstance(env, HostEnv):
             host_path = (
                 f"train it through the gymnasium vector adapter, ppo.train_gymnasium(config, "
@@ -45,7 +117,7 @@ def check_env(env: Any, agent: str) -> None:
     if not env.obs_context.hidden:
         raise ConfigError(
             f"{env.name} already appends {list(env.obs_context.features)} to its observation; the "
-            f"agent builds its own context input (obs_context), so pass the environment without "
+            f"agent builds its own context input (its variant), so pass the environment without "
             f"obs_context_features"
         )
 

@@ -23,45 +23,40 @@ import numpy as np
 import optax
 
 from contextrl.agents.common import (
+    AgentConfig,
     EpisodeLog,
+    Policy,
     Progress,
     TrainResult,
-    check_env,
+    agent_inputs,
     contextual_env_factory,
     num_context_ids,
 )
-from contextrl.agents.host import HostLearner, HostSchedule, HostStep, train_on_host
+from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
 from contextrl.agents.networks import (
     ConditionedMLP,
     ConfigError,
     ContextInput,
     check_fraction,
-    check_hidden_sizes,
     check_positive,
-    context_input,
 )
-from contextrl.agents.replay import Replay
-from contextrl.core.spaces import Discrete
+from contextrl.agents.replay import Replay, transition, transition_example
 
 EXPLORATIONS = ("epsilon", "boltzmann")
 
 
 @dataclasses.dataclass(frozen=True)
-class DQNConfig:
+class DQNConfig(AgentConfig):
     """DQN / C51 hyper-parameters (defaults: a fast CartPole setting; see :func:`paper_config`)."""
 
-    total_timesteps: int = 100_000
-    """Environment steps over all copies, warm-up included; rounded down to whole logging periods."""
-    num_envs: int = 4
-    """Environment copies stepped in parallel."""
+    hidden_sizes: tuple[int, ...] = (128, 128)
+    activation: str = "relu"
     learning_rate: float = 1e-3
     """Adam step size."""
     buffer_size: int = 100_000
     """Replay capacity in transitions (over all copies)."""
     batch_size: int = 128
     """Transitions per gradient step."""
-    gamma: float = 0.99
-    """Discount factor."""
     n_step: int = 3
     """Steps summed in each return before bootstrapping."""
     learning_starts: int = 5000
@@ -92,30 +87,13 @@ class DQNConfig:
     """C51 support lower end (paper: q_min_value)."""
     v_max: float = 100.0
     """C51 support upper end (paper: q_max_value)."""
-    hidden_sizes: tuple[int, ...] = (128, 128)
-    """Widths of the hidden layers."""
-    activation: str = "relu"
-    """Hidden activation: "relu" or "tanh"."""
-    obs_context: str = "hidden"
-    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "round_robin"
-    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
-    or "static"; copy i of N runs global episodes i, i + N, …"""
     log_every: int = 1000
     """Environment steps per metrics row (rounded to whole gradient steps)."""
-    episode_log_size: int = 1000
-    """How many of the most recent episodes the result keeps individually."""
-    progress_every: int = 0
-    """Print a progress line every this many metrics rows (0: silent)."""
-
-    def __post_init__(self):
-        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
 
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""
+        super().validate()
         for name in (
-            "total_timesteps",
-            "num_envs",
             "buffer_size",
             "batch_size",
             "n_step",
@@ -123,14 +101,12 @@ class DQNConfig:
             "target_update_interval",
             "num_atoms",
             "log_every",
-            "episode_log_size",
         ):
             check_positive(name, getattr(self, name), integer=True)
         check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
-        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
         for name in ("learning_rate", "max_grad_norm", "temperature"):
             check_positive(name, getattr(self, name))
-        for name in ("gamma", "tau", "start_epsilon", "end_epsilon", "exploration_fraction"):
+        for name in ("tau", "start_epsilon", "end_epsilon", "exploration_fraction"):
             check_fraction(name, getattr(self, name))
         if self.tau == 0:
             raise ConfigError("tau must be > 0 (0 would never update the target network)")
@@ -151,7 +127,6 @@ class DQNConfig:
                 f"C51 needs v_min < v_max and at least 2 atoms, got v_min={self.v_min}, "
                 f"v_max={self.v_max}, num_atoms={self.num_atoms}"
             )
-        check_hidden_sizes(self.hidden_sizes, self.activation)
         if self.buffer_size < self.num_envs * max(self.n_step, 2):
             raise ConfigError(
                 f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
@@ -223,22 +198,15 @@ class _Networks:
     atoms: jax.Array | None
 
 
-def _networks(config: DQNConfig, env, train_contexts) -> _Networks:
-    config.validate()
-    check_env(env, "DQN")
-    if not isinstance(env.action_space, Discrete):
-        raise ConfigError(f"DQN/C51 needs a Discrete action space; {env.name} has a continuous one")
-    context = context_input(config.obs_context, env.context_space, train_contexts)
-    return _build_networks(config, env.name, env.action_space, env.observation_space, context)
-
-
-def _build_networks(config: DQNConfig, name: str, action_space, obs_space, context) -> _Networks:
-    """The Q-network for these spaces (contextrl's or gymnasium's)."""
+def _networks(
+    config: DQNConfig, observation_space, action_space, context: ContextInput
+) -> _Networks:
+    """The Q-network for these spaces (contextrl's or gymnasium's) and context input."""
     if not hasattr(action_space, "n"):
-        raise ConfigError(f"DQN/C51 needs a Discrete action space; {name} has {action_space!r}")
-    obs_shape = obs_space.shape
+        raise ConfigError(f"DQN/C51 needs a Discrete action space, got {action_space!r}")
+    obs_shape = observation_space.shape
     if len(obs_shape) != 1:
-        raise ConfigError(f"DQN needs a flat (1-D) observation, {name} gives shape {obs_shape}")
+        raise ConfigError(f"DQN needs a flat (1-D) observation, got shape {obs_shape}")
     num_actions = int(action_space.n)
     outputs = num_actions * (config.num_atoms if config.distributional else 1)
     q = ConditionedMLP(
@@ -268,7 +236,7 @@ def _q_values(nets: _Networks, params, obs, context_vector):
 
 def init_params(config: DQNConfig, env, train_contexts: Any, key) -> dict:
     """Freshly initialised Q-network parameters."""
-    return _networks(config, env, train_contexts).q.init(key)
+    return _networks(config, *agent_inputs(config, env, train_contexts, "DQN")).q.init(key)
 
 
 def _learner(config: DQNConfig, nets: _Networks):
@@ -336,7 +304,7 @@ def _learner(config: DQNConfig, nets: _Networks):
 
 def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
     """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "DQN", host=False))
     build_env = contextual_env_factory(env, train_contexts, config.context_selector)
     num_contexts = num_context_ids(env, train_contexts)
     space = env.context_space
@@ -359,16 +327,10 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs
-        example = {
-            "obs": obs,
-            "context": context_of(env_state.context),
-            "action": jnp.zeros((num_envs,), jnp.int32),
-            "reward": jnp.zeros((num_envs,), jnp.float32),
-            "terminated": jnp.zeros((num_envs,), bool),
-            "done": jnp.zeros((num_envs,), bool),
-            "next_obs": obs,
-        }
-        replay = Replay.create(capacity, example)
+        action = jnp.zeros((num_envs,), jnp.int32)
+        replay = Replay.create(
+            capacity, transition_example(obs, context_of(env_state.context), action)
+        )
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
 
         def env_step(carry, action_fn):
@@ -378,17 +340,7 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
             action = action_fn(obs, context_vector, action_key).astype(jnp.int32)
             env_state, timestep = cenv.step_copies(env_state, action)
             step = step + num_envs
-            replay = replay.add(
-                {
-                    "obs": obs,
-                    "context": context_vector,
-                    "action": action,
-                    "reward": timestep.reward,
-                    "terminated": timestep.terminated,
-                    "done": timestep.done,
-                    "next_obs": timestep.final_obs,
-                }
-            )
+            replay = replay.add(transition(obs, context_vector, action, timestep))
             log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
             return env_state, timestep.obs, replay, log, step, key
 
@@ -475,33 +427,18 @@ def train_gymnasium(
     )
 
 
-def make_host_policy(config: DQNConfig, action_space, obs_space, context) -> Callable:
-    """``act(params, obs, context_input, key) -> greedy actions`` for a batch of host observations;
-    ``context`` is the training ContextInput."""
-    nets = _build_networks(config, "the environment", action_space, obs_space, context)
-
-    @jax.jit
-    def act(params, obs, context_vector, key):
-        return jnp.argmax(_q_values(nets, params, obs, context_vector)[0], axis=-1)
-
-    return act
-
-
 class _HostLearner(HostLearner):
     """DQN/C51's part of the host loop: ε-greedy (or Boltzmann) acting, replay, gradient steps."""
 
     def __init__(self, config: DQNConfig, collector, key, init_params=None):
-        nets = _build_networks(
-            config,
-            "the environment",
-            *collector.agent_inputs,
-        )
+        nets = _networks(config, *collector.agent_inputs)
         optimizer, act, learn, self._epsilon_at = _learner(config, nets)
         self._num_actions, self._num_envs = nets.num_actions, config.num_envs
         key, init_key = jax.random.split(key)
         self.params = nets.q.init(init_key) if init_params is None else init_params
         self._target_params, self._opt_state = self.params, optimizer.init(self.params)
-        example = HostStep.example(collector, np.zeros((self._num_envs,), np.int32))
+        action = np.zeros((self._num_envs,), np.int32)
+        example = transition_example(collector.obs, collector.context, action)
         capacity = max(config.buffer_size // self._num_envs, config.n_step + 1)
         # Own buffers: every step donates them.
         self._replay = jax.tree_util.tree_map(jnp.copy, Replay.create(capacity, example))
@@ -520,8 +457,8 @@ class _HostLearner(HostLearner):
         return self._action
 
     def store(self, obs, context, step, warmup):
-        transition = step.transition(obs, context, self._action.astype(np.int32))
-        self._replay = self._add(self._replay, transition)
+        action = self._action.astype(np.int32)
+        self._replay = self._add(self._replay, transition(obs, context, action, step))
 
     def update(self):
         self._key, sample_key = jax.random.split(self._key)
@@ -541,30 +478,28 @@ class _HostLearner(HostLearner):
         return {"loss": float(np.mean(losses))}
 
 
-def make_policy(
-    config: DQNConfig, env, train_contexts: Any, deterministic: bool = True
-) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
-    """``policy(params, obs, ctx, key) -> action``: greedy, or exploring (final ε or Boltzmann)."""
-    nets = _networks(config, env, train_contexts)
-    space = env.context_space
+def make_policy(config: DQNConfig, env, train_contexts: Any, deterministic: bool = True) -> Policy:
+    """The :class:`~contextrl.agents.common.Policy` of an agent trained on ``train_contexts`` in ``env``
+    (a JAX or a host environment): greedy, or exploring (final ε or Boltzmann)."""
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "DQN"))
 
-    def policy(params, obs, ctx, key):
-        q, _ = _q_values(nets, params, obs, nets.context.vector(space, ctx))
+    def act(params, obs, context_vector, key):
+        q, _ = _q_values(nets, params, obs, context_vector)
         if deterministic:
             return jnp.argmax(q, axis=-1)
         if config.exploration == "boltzmann":
             return jax.random.categorical(key, q / config.temperature)
         explore_key, random_key = jax.random.split(key)
-        random_action = jax.random.randint(random_key, (), 0, nets.num_actions)
-        explore = jax.random.uniform(explore_key) < config.end_epsilon
+        random_action = jax.random.randint(random_key, q.shape[:-1], 0, nets.num_actions)
+        explore = jax.random.uniform(explore_key, q.shape[:-1]) < config.end_epsilon
         return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
 
-    return policy
+    return Policy(act, nets.context, env.context_space)
 
 
 def q_values(config: DQNConfig, env, train_contexts: Any) -> Callable:
     """``(params, obs, ctx) -> expected return per action``."""
-    nets = _networks(config, env, train_contexts)
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "DQN"))
     space = env.context_space
 
     def values(params, obs, ctx):

@@ -1,15 +1,15 @@
 """One host stepping loop for every agent: N copies of a registered environment through gymnasium's
 public vector API, for environments that are not JAX functions (dm_control, Box2D, RNA…).
 
-    collector = HostCollector("DmcWalker", num_envs=4, contexts=contexts, obs_context="concat_all")
+    collector = HostCollector("DmcWalker", num_envs=4, contexts=contexts, variant="concat_all")
     step = collector.step(env_actions)      # obs, context input, rewards, ends, final observations
 
 The collector owns what every agent's host training needs and nothing algorithm-specific: the vector
 env (``gymnasium.make_vec("contextrl/<Id>-v0", num_envs=N, contexts=...)``, same-step auto-reset), the
 agent's context input read from ``info["context"]`` and normalised by the feature bounds as on the JAX
-path, and the episode bookkeeping behind training curves. :func:`train_on_host` is the one training
-loop over it (warm-up, rows of updates, metrics, progress); an agent adds only a :class:`HostLearner`
-(acting, storing and learning).
+path, and the episode bookkeeping behind training curves (the JAX path's :class:`EpisodeLog`).
+:func:`train_on_host` is the one training loop over it (warm-up, rows of updates, metrics, progress);
+an agent adds only a :class:`HostLearner` (acting, storing and learning).
 """
 
 from __future__ import annotations
@@ -23,12 +23,14 @@ import gymnasium
 import jax
 import numpy as np
 
-from contextrl.agents.common import Progress, TrainResult
+from contextrl.agents.common import EpisodeLog, Progress, TrainResult
 from contextrl.agents.networks import ConfigError, ContextInput, context_input
 from contextrl.context.distributions import DISTRIBUTIONS
+from contextrl.context.schedule import resolve_contexts
 from contextrl.gymnasium.registration import gym_id
 
 
+@jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class HostStep:
     """One vector step. ``final_obs`` is the last observation of an ended episode and ``next_obs``
@@ -45,29 +47,18 @@ class HostStep:
     def done(self) -> np.ndarray:
         return self.terminated | self.truncated
 
-    @staticmethod
-    def example(collector: HostCollector, action: np.ndarray) -> dict:
-        """A replay example of one vector step (``action`` for every copy), to size buffers."""
-        return HostStep(
-            np.zeros(collector.num_envs, np.float32),
-            np.zeros(collector.num_envs, bool),
-            np.zeros(collector.num_envs, bool),
-            collector.obs,
-            collector.obs,
-            collector.context,
-        ).transition(collector.obs, collector.context, action)
 
-    def transition(self, obs: np.ndarray, context: np.ndarray, action: np.ndarray) -> dict:
-        """The replay transition of this step taken with ``action`` from ``obs``/``context``."""
-        return {
-            "obs": obs,
-            "context": context,
-            "action": action,
-            "reward": self.reward,
-            "terminated": self.terminated,
-            "done": self.done,
-            "next_obs": self.final_obs,
-        }
+@jax.jit
+def _record_steps(log: EpisodeLog, rewards, dones, context_ids, steps) -> EpisodeLog:
+    """``log`` with buffered vector steps added in order: one compiled call per metrics row instead
+    of one per step (a call costs about as much as stepping CartPole's copies)."""
+    return jax.lax.scan(
+        lambda log, step: (log.record(*step), None), log, (rewards, dones, context_ids, steps)
+    )[0]
+
+
+_close_period = jax.jit(EpisodeLog.close_period)
+_FLUSH_EVERY = 4096  # vector steps buffered at most before they go into the log
 
 
 class HostCollector:
@@ -78,16 +69,18 @@ class HostCollector:
         env_id: str,
         num_envs: int,
         contexts: Any,
-        obs_context: str = "hidden",
+        variant: str = "hidden",
         *,
         selector: str = "random",
         seed: int = 0,
         vectorization: str = "sync",
         context: ContextInput | None = None,
+        episode_log_size: int = 1000,
         **env_kwargs: Any,
     ):
         """``context`` fixes the agent's context input (an agent trained on other contexts sees
-        the features it was trained with); by default it follows ``obs_context`` and ``contexts``."""
+        the features it was trained with); by default it follows ``variant`` and ``contexts``.
+        Episodes are logged by their index in the context set (−1: resampled), as on the JAX path."""
         resampled = isinstance(contexts, Mapping) and any(
             isinstance(v, DISTRIBUTIONS) for v in contexts.values()
         )
@@ -101,35 +94,25 @@ class HostCollector:
             **env_kwargs,
         )
         self.num_envs = num_envs
-        self.env_name = env_id
         self.space = (
             getattr(self.envs, "context_space", None) or self.envs.get_attr("context_space")[0]
         )
         if context is None:
-            context = context_input(obs_context, self.space, contexts)
+            context = context_input(variant, self.space, contexts)
         self.context_input = context
         self._names = context.view.features
         self.steps = 0
-        self._running_return = np.zeros(num_envs)
-        self._running_length = np.zeros(num_envs, np.int64)
-        self._episodes: list[tuple[float, int, int, int]] = []
-        self._period_start = 0
-        self._last_curve = (0.0, 0.0)
+        ids = resolve_contexts(self.space, contexts).ids
+        self._set_index = {user_id: index for index, user_id in enumerate(ids)}
+        self._log = EpisodeLog.create(num_envs, episode_log_size, len(ids))
+        self._pending: list[tuple] = []  # (reward, done, context id, step) not yet in the log
         obs, info = self.envs.reset(seed=seed)
         self.obs, self.context = np.asarray(obs, np.float32), self._context_input(info)
 
     @property
-    def single_action_space(self):
-        return self.envs.single_action_space
-
-    @property
-    def single_observation_space(self):
-        return self.envs.single_observation_space
-
-    @property
     def agent_inputs(self) -> tuple[Any, Any, ContextInput]:
-        """(action space, observation space, context input) of one copy: what agents build from."""
-        return self.single_action_space, self.single_observation_space, self.context_input
+        """(observation space, action space, context input) of one copy: what agents build from."""
+        return self.envs.single_observation_space, self.envs.single_action_space, self.context_input
 
     def _context_input(self, info) -> np.ndarray:
         columns = []
@@ -155,54 +138,35 @@ class HostCollector:
         for i in np.flatnonzero(done):
             final[i] = info["final_obs"][i]
         self.steps += self.num_envs
-        self._running_return += reward
-        self._running_length += 1
+        context_id = np.full(self.num_envs, -1, np.int32)
         for i in np.flatnonzero(done):
-            context_id = int(info["final_info"]["context_id"][i])
-            self._episodes.append(
-                (
-                    float(self._running_return[i]),
-                    int(self._running_length[i]),
-                    context_id,
-                    self.steps,
-                )
-            )
-        self._running_return[done], self._running_length[done] = 0.0, 0
+            context_id[i] = self._set_index.get(info["final_info"]["context_id"][i], -1)
+        self._pending.append((reward, done, context_id, self.steps))
+        if len(self._pending) == _FLUSH_EVERY:
+            self._flush()
         self.obs, self.context = obs, self._context_input(info)
         return HostStep(reward, terminated, truncated, final, obs, self.context)
 
-    def close_period(self) -> dict[str, float]:
-        """The training-curve row of the episodes that ended since the last call; when none did, the
-        last row's values (before any episode ended: the running episodes' so far), never NaN."""
-        ended = self._episodes[self._period_start :]
-        self._period_start = len(self._episodes)
-        if ended:
-            self._last_curve = (
-                float(np.mean([e[0] for e in ended])),
-                float(np.mean([e[1] for e in ended])),
-            )
-        elif not self._episodes:
-            self._last_curve = (
-                float(self._running_return.mean()),
-                float(self._running_length.mean()),
-            )
-        return {
-            "step": self.steps,
-            "episode_return": self._last_curve[0],
-            "episode_length": self._last_curve[1],
-            "episodes_finished": len(ended),
-        }
+    def _flush(self) -> None:
+        if self._pending:
+            columns = [np.stack(column) for column in zip(*self._pending, strict=True)]
+            self._log = _record_steps(self._log, *columns)
+            self._pending = []
 
-    def episodes(self, limit: int) -> dict[str, Any]:
-        """The ``limit`` most recent episodes, oldest first, as in ``TrainResult.metrics``."""
-        recent = self._episodes[-limit:]
-        return {
-            "return": np.asarray([e[0] for e in recent], np.float32),
-            "length": np.asarray([e[1] for e in recent], np.int32),
-            "context_id": np.asarray([e[2] for e in recent], np.int32),
-            "step": np.asarray([e[3] for e in recent], np.int32),
-            "total": len(self._episodes),
-        }
+    def close_period(self) -> dict[str, Any]:
+        """The training-curve row of the episodes that ended since the last call (see
+        :meth:`EpisodeLog.close_period`: never NaN) and the steps so far."""
+        self._flush()
+        self._log, row = _close_period(self._log)
+        return {"step": self.steps, **jax.device_get(row)}
+
+    def episodes(self) -> dict[str, Any]:
+        """The most recent episodes (up to the log's size), oldest first, as in
+        ``TrainResult.metrics``."""
+        self._flush()
+        episodes = jax.device_get(self._log.episodes())
+        kept = min(int(episodes["total"]), len(episodes["return"]))
+        return {name: v if name == "total" else v[:kept] for name, v in episodes.items()}
 
     def evaluate(self, act, params, episodes: int, key) -> np.ndarray:
         """Mean undiscounted return of each copy's first ``episodes`` episodes under
@@ -305,10 +269,11 @@ def train_on_host(
         env_id,
         config.num_envs,
         train_contexts,
-        config.obs_context,
+        config.variant,
         selector=config.context_selector,
         seed=seed,
         vectorization=vectorization,
+        episode_log_size=config.episode_log_size,
         **env_kwargs,
     ) as collector:
         learner = make_learner(config, collector, key, init_params)
@@ -334,5 +299,5 @@ def train_on_host(
             if config.progress_every:
                 progress(row_index, rows[-1]["step"], rows[-1]["episode_return"])
         metrics = {column: np.asarray([row[column] for row in rows]) for column in rows[0]}
-        metrics["episodes"] = collector.episodes(config.episode_log_size)
+        metrics["episodes"] = collector.episodes()
         return TrainResult(learner.params, metrics)

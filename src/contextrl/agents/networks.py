@@ -1,8 +1,9 @@
 """Network pieces shared by every agent: MLPs in plain JAX and the context encoders.
 
 Parameters are nested dicts of arrays (a pytree), so they vmap over seeds, save to a checkpoint and
-load back without a framework. How the agent sees the context (``obs_context``, the name environments
-use too, with the same normaliser: :class:`contextrl.context.ContextObservation`) is one of four modes:
+load back without a framework. How the agent sees the context (its ``variant``; the features it reads
+are normalised as environments normalise a visible context: :class:`contextrl.context.ContextObservation`)
+is one of four :data:`VARIANTS`:
 
 - ``hidden``: the network gets the observation only (the context-oblivious baseline);
 - ``concat_all``: every context feature, normalised by its bounds to [0, 1], is appended to the input;
@@ -30,7 +31,7 @@ from contextrl.context.features import ContextBase, ContextSpace
 from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import resolve_contexts
 
-CONTEXT_MODES = ("hidden", "concat_all", "concat_varying", "gated")
+VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")  # how an agent sees the context
 ACTIVATIONS = {"tanh": jnp.tanh, "relu": jax.nn.relu}
 
 Params = dict[str, Any]
@@ -71,9 +72,9 @@ def dense(params: Params, x: jax.Array) -> jax.Array:
 
 @dataclasses.dataclass(frozen=True)
 class ContextInput:
-    """How a network is conditioned (``mode``) on which features (``view``, normalised to [0, 1])."""
+    """How a network is conditioned (``variant``) on which features (``view``, normalised to [0, 1])."""
 
-    mode: str = "hidden"
+    variant: str = "hidden"
     view: ContextObservation = ContextObservation()
 
     @property
@@ -95,24 +96,27 @@ def varying_features(space: ContextSpace, train_contexts: Any) -> tuple[str, ...
     return schedule.observation("varying", normalize=True, noise=0.0).features
 
 
-def context_input(mode: str, space: ContextSpace, train_contexts: Any) -> ContextInput:
-    """Resolve a context mode against the environment's context space and the training contexts."""
-    if mode not in CONTEXT_MODES:
-        raise ConfigError(
-            f"obs_context: unknown mode {mode!r}; choose one of {list(CONTEXT_MODES)}"
-        )
-    if mode == "hidden":
+def check_variant(variant: Any) -> None:
+    """Refuse a variant that is not one of :data:`VARIANTS`, listing them."""
+    if variant not in VARIANTS:
+        raise ConfigError(f"variant: unknown {variant!r}; choose one of {list(VARIANTS)}")
+
+
+def context_input(variant: str, space: ContextSpace, train_contexts: Any) -> ContextInput:
+    """Resolve a variant against the environment's context space and the training contexts."""
+    check_variant(variant)
+    if variant == "hidden":
         return ContextInput()
-    if mode == "concat_varying":
+    if variant == "concat_varying":
         names = varying_features(space, train_contexts)
         if not names:
             raise ConfigError(
-                "obs_context='concat_varying': no context feature varies in the training contexts, "
+                "variant='concat_varying': no context feature varies in the training contexts, "
                 "so there is nothing to append; use 'hidden' or 'concat_all'"
             )
     else:
         names = space.names
-    return ContextInput(mode, ContextObservation(features=tuple(names), normalize=True))
+    return ContextInput(variant, ContextObservation(features=tuple(names), normalize=True))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,7 +133,7 @@ class ConditionedMLP:
     def init(self, key) -> Params:
         sizes = list(self.hidden_sizes)
         first_in = self.in_size + (
-            self.context.size if self.context.mode.startswith("concat") else 0
+            self.context.size if self.context.variant.startswith("concat") else 0
         )
         keys = jax.random.split(key, len(sizes) + 2)
         params: Params = {}
@@ -138,18 +142,18 @@ class ConditionedMLP:
             params[f"layer_{i}"] = dense_init(keys[i], n_in, width, math.sqrt(2.0))
             n_in = width
         params["out"] = dense_init(keys[len(sizes)], n_in, self.out_size, self.out_scale)
-        if self.context.mode == "gated":
+        if self.context.variant == "gated":
             # Zero weights and bias: the gate starts at exactly 1, i.e. as the hidden agent.
             params["gate"] = dense_init(keys[-1], self.context.size, sizes[0], 0.0)
         return params
 
     def apply(self, params: Params, x: jax.Array, context_vector: jax.Array) -> jax.Array:
         activation = ACTIVATIONS[self.activation]
-        if self.context.mode.startswith("concat"):
+        if self.context.variant.startswith("concat"):
             x = jnp.concatenate([x, context_vector], axis=-1)
         for i in range(len(self.hidden_sizes)):
             x = activation(dense(params[f"layer_{i}"], x))
-            if i == 0 and self.context.mode == "gated":
+            if i == 0 and self.context.variant == "gated":
                 x = x * 2.0 * jax.nn.sigmoid(dense(params["gate"], context_vector))
         return dense(params["out"], x)
 

@@ -1,6 +1,6 @@
 """Proximal Policy Optimisation (clipped objective, GAE), the whole training run one JAX function.
 
-    config = ppo.PPOConfig(total_timesteps=500_000, obs_context="concat_varying")
+    config = ppo.PPOConfig(total_timesteps=500_000, variant="concat_varying")
     train = ppo.make_train(config, env, train_contexts)
     result = jax.jit(train)(key)                          # one seed
     results = jax.jit(jax.vmap(train))(keys)              # many seeds in one call
@@ -8,8 +8,9 @@
 
 ``train(key, contexts=None, params=None)``: with ``contexts`` omitted the agent trains on the
 ``train_contexts`` given to ``make_train``; a batch of the same shape trains on that set instead, which
-is how ``vmap`` trains specialists. ``params`` continues training given parameters (fresh optimiser). Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to
-the action bounds when stepping). Episodes cut by the time limit bootstrap from the value of the final
+is how ``vmap`` trains specialists. ``params`` continues training given parameters (fresh optimiser).
+Actions are discrete (categorical) or continuous (a diagonal Gaussian, clipped to the action bounds
+when stepping). Episodes cut by the time limit bootstrap from the value of the final
 observation instead of counting as failures.
 """
 
@@ -25,11 +26,13 @@ import numpy as np
 import optax
 
 from contextrl.agents.common import (
+    AgentConfig,
     EpisodeLog,
+    Policy,
     Progress,
     TrainResult,
+    agent_inputs,
     anneal,
-    check_env,
     contextual_env_factory,
     num_context_ids,
 )
@@ -39,29 +42,21 @@ from contextrl.agents.networks import (
     ConfigError,
     ContextInput,
     check_fraction,
-    check_hidden_sizes,
     check_positive,
-    context_input,
 )
-from contextrl.core.spaces import Box, Discrete
 
 
 @dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    """PPO hyper-parameters (defaults: PureJaxRL's CartPole settings)."""
+class PPOConfig(AgentConfig):
+    """PPO hyper-parameters (defaults: PureJaxRL's CartPole settings); one metrics row per update."""
 
     total_timesteps: int = 500_000
-    """Environment steps over all copies; rounded down to whole updates."""
-    num_envs: int = 4
-    """Environment copies stepped in parallel."""
     num_steps: int = 128
     """Steps per copy in each rollout (one update per rollout)."""
     learning_rate: float = 2.5e-4
     """Adam step size."""
     anneal_lr: bool = True
     """Decay the learning rate linearly to zero over training."""
-    gamma: float = 0.99
-    """Discount factor."""
     gae_lambda: float = 0.95
     """GAE trace parameter."""
     num_minibatches: int = 4
@@ -76,44 +71,19 @@ class PPOConfig:
     """Weight of the value loss."""
     max_grad_norm: float = 0.5
     """Global gradient-norm clip."""
-    hidden_sizes: tuple[int, ...] = (64, 64)
-    """Widths of the hidden layers of actor and critic (separate networks)."""
-    activation: str = "tanh"
-    """Hidden activation: "tanh" or "relu"."""
     log_std_init: float = 0.0
     """Initial log standard deviation of the Gaussian policy (continuous actions)."""
-    obs_context: str = "hidden"
-    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "round_robin"
-    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
-    or "static"; copy i of N runs global episodes i, i + N, …"""
-    episode_log_size: int = 1000
-    """How many of the most recent episodes the result keeps individually."""
-    progress_every: int = 0
-    """Print a progress line every this many updates (0: silent)."""
-
-    def __post_init__(self):
-        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
 
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""
-        for name in (
-            "total_timesteps",
-            "num_envs",
-            "num_steps",
-            "num_minibatches",
-            "update_epochs",
-        ):
+        super().validate()
+        for name in ("num_steps", "num_minibatches", "update_epochs"):
             check_positive(name, getattr(self, name), integer=True)
         for name in ("learning_rate", "max_grad_norm"):
             check_positive(name, getattr(self, name))
         for name in ("clip_eps", "ent_coef", "vf_coef"):
             check_positive(name, getattr(self, name), allow_zero=True)
-        check_fraction("gamma", self.gamma)
         check_fraction("gae_lambda", self.gae_lambda)
-        check_positive("episode_log_size", self.episode_log_size, integer=True)
-        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
-        check_hidden_sizes(self.hidden_sizes, self.activation)
         if not isinstance(self.log_std_init, (int, float)) or not np.isfinite(self.log_std_init):
             raise ConfigError(f"log_std_init must be a finite number, got {self.log_std_init!r}")
         batch = self.num_envs * self.num_steps
@@ -142,20 +112,20 @@ class _Networks:
     action_high: np.ndarray | None
 
 
-def _networks(config: PPOConfig, env, train_contexts) -> _Networks:
-    config.validate()
-    check_env(env, "PPO")
-    space = env.action_space
-    if isinstance(space, Discrete):
-        discrete, action_size, low, high = True, space.n, None, None
-    elif isinstance(space, Box) and len(space.shape) == 1:
-        discrete, action_size, low, high = False, space.shape[0], space.low, space.high
+def _networks(
+    config: PPOConfig, observation_space, action_space, context: ContextInput
+) -> _Networks:
+    """Actor and critic for these spaces (contextrl's or gymnasium's) and context input."""
+    if hasattr(action_space, "n"):
+        discrete, action_size, low, high = True, int(action_space.n), None, None
+    elif hasattr(action_space, "low") and len(action_space.shape) == 1:
+        discrete, action_size = False, action_space.shape[0]
+        low, high = np.asarray(action_space.low), np.asarray(action_space.high)
     else:
-        raise ConfigError(f"PPO needs a Discrete or a 1-D Box action space, got {space!r}")
-    obs_shape = env.observation_space.shape
+        raise ConfigError(f"PPO needs a Discrete or a 1-D Box action space, got {action_space!r}")
+    obs_shape = observation_space.shape
     if len(obs_shape) != 1:
-        raise ConfigError(f"PPO needs a flat (1-D) observation, {env.name} gives shape {obs_shape}")
-    context = context_input(config.obs_context, env.context_space, train_contexts)
+        raise ConfigError(f"PPO needs a flat (1-D) observation, got shape {obs_shape}")
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
     actor = ConditionedMLP(obs_shape[0], action_size, out_scale=0.01, **common)
     critic = ConditionedMLP(obs_shape[0], 1, out_scale=1.0, **common)
@@ -217,7 +187,16 @@ def _init_params(nets: _Networks, config: PPOConfig, key) -> dict:
 
 def init_params(config: PPOConfig, env, train_contexts: Any, key) -> dict:
     """Freshly initialised parameters (what ``train`` starts from for the same key's split)."""
-    return _init_params(_networks(config, env, train_contexts), config, key)
+    return _init_params(
+        _networks(config, *agent_inputs(config, env, train_contexts, "PPO")), config, key
+    )
+
+
+def _time_limit_reward(value, params, step, context_vector, gamma):
+    """The step's reward plus, where the time limit cut the episode (not a failure), the discounted
+    value of its final observation."""
+    cut = step.truncated & ~step.terminated
+    return step.reward + gamma * value(params, step.final_obs, context_vector) * cut
 
 
 def _learner(config: PPOConfig, nets: _Networks):
@@ -319,7 +298,7 @@ def _learner(config: PPOConfig, nets: _Networks):
 
 def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
     """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "PPO", host=False))
     build_env = contextual_env_factory(env, train_contexts, config.context_selector)
     num_contexts = num_context_ids(env, train_contexts)
     space = env.context_space
@@ -346,10 +325,7 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
             state_value = value(params, obs, context_vector)
             env_state, timestep = cenv.step_copies(env_state, _env_action(nets, action))
             step = step + num_envs
-            # A time-limit cut is not a failure: bootstrap from the final observation's value.
-            cut = timestep.truncated & ~timestep.terminated
-            final_value = value(params, timestep.final_obs, context_vector)
-            reward = timestep.reward + config.gamma * final_value * cut
+            reward = _time_limit_reward(value, params, timestep, context_vector, config.gamma)
             log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
             transition = (obs, context_vector, action, log_prob, state_value, reward, timestep.done)
             return (params, env_state, timestep.obs, log, step, key), transition
@@ -408,46 +384,11 @@ def train_gymnasium(
     )
 
 
-def _host_networks(config: PPOConfig, action_space, obs_space, context) -> _Networks:
-    """Actor and critic for gymnasium spaces (the host path)."""
-    if hasattr(action_space, "n"):
-        discrete, action_size, low, high = True, int(action_space.n), None, None
-    else:
-        discrete, action_size = False, int(action_space.shape[0])
-        low, high = action_space.low, action_space.high
-    obs_size = int(np.prod(obs_space.shape))
-    common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
-    return _Networks(
-        ConditionedMLP(obs_size, action_size, out_scale=0.01, **common),
-        ConditionedMLP(obs_size, 1, out_scale=1.0, **common),
-        context,
-        discrete,
-        low,
-        high,
-    )
-
-
-def make_host_policy(config: PPOConfig, action_space, obs_space, context) -> Callable:
-    """``act(params, obs, context_input, key) -> env actions`` for a batch of host observations
-    (the most likely action or the Gaussian mean); ``context`` is the training ContextInput."""
-    nets = _host_networks(config, action_space, obs_space, context)
-
-    @jax.jit
-    def act(params, obs, context_vector, key):
-        head, _ = _policy_outputs(nets, params, obs, context_vector)
-        return _env_action(nets, jnp.argmax(head, axis=-1) if nets.discrete else head)
-
-    return act
-
-
 class _HostLearner(HostLearner):
     """PPO's part of the host loop: sampling with values, the rollout, the clipped update."""
 
     def __init__(self, config: PPOConfig, collector, key, init_params=None):
-        nets = _host_networks(
-            config,
-            *collector.agent_inputs,
-        )
+        nets = _networks(config, *collector.agent_inputs)
         optimizer, value, learn = _learner(config, nets)
 
         @jax.jit
@@ -456,7 +397,11 @@ class _HostLearner(HostLearner):
             return action, _env_action(nets, action), log_prob, value(params, obs, context_vector)
 
         self._act, self._value, self._learn = act, jax.jit(value), jax.jit(learn)
-        self._gamma = config.gamma
+        self._time_limit_reward = jax.jit(
+            lambda params, step, context: _time_limit_reward(
+                value, params, step, context, config.gamma
+            )
+        )
         self._key, init_key = jax.random.split(key)
         fresh = init_params is None
         self.params = _init_params(nets, config, init_key) if fresh else init_params
@@ -471,12 +416,9 @@ class _HostLearner(HostLearner):
         return np.asarray(env_action)
 
     def store(self, obs, context, step, warmup):
-        # A time-limit cut is not a failure: bootstrap from the final observation's value.
-        cut = step.truncated & ~step.terminated
-        bootstrap = np.zeros(cut.shape, np.float32)
-        if cut.any():
-            bootstrap = np.asarray(self._value(self.params, step.final_obs, context)) * cut
-        reward = step.reward + self._gamma * bootstrap
+        reward = step.reward
+        if (step.truncated & ~step.terminated).any():  # else there is nothing to bootstrap
+            reward = np.asarray(self._time_limit_reward(self.params, step, context))
         self._rollout.append(
             (obs, context, self._action, self._log_prob, self._state_value, reward, step.done)
         )
@@ -498,19 +440,14 @@ class _HostLearner(HostLearner):
         }
 
 
-def make_policy(
-    config: PPOConfig, env, train_contexts: Any, deterministic: bool = True
-) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
-    """``policy(params, obs, ctx, key) -> action`` for one observation and its context.
+def make_policy(config: PPOConfig, env, train_contexts: Any, deterministic: bool = True) -> Policy:
+    """The :class:`~contextrl.agents.common.Policy` of an agent trained on ``train_contexts`` in ``env``
+    (a JAX or a host environment): the most likely action (discrete) or the Gaussian mean when
+    deterministic, a sample otherwise; the action is what the environment takes (continuous actions
+    clipped to the bounds)."""
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "PPO"))
 
-    Deterministic: the most likely action (discrete) or the Gaussian mean; otherwise a sample. The
-    action is what the environment takes (continuous actions clipped to the bounds).
-    """
-    nets = _networks(config, env, train_contexts)
-    space = env.context_space
-
-    def policy(params, obs, ctx, key):
-        context_vector = nets.context.vector(space, ctx)
+    def act(params, obs, context_vector, key):
         if deterministic:
             head, _ = _policy_outputs(nets, params, obs, context_vector)
             action = jnp.argmax(head, axis=-1) if nets.discrete else head
@@ -518,12 +455,12 @@ def make_policy(
             action, _ = _sample(nets, params, obs, context_vector, key)
         return _env_action(nets, action)
 
-    return policy
+    return Policy(act, nets.context, env.context_space)
 
 
 def action_distribution(config: PPOConfig, env, train_contexts: Any) -> Callable:
     """``(params, obs, ctx) -> probabilities`` (discrete) or ``(mean, std)`` (continuous)."""
-    nets = _networks(config, env, train_contexts)
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "PPO"))
     space = env.context_space
 
     def distribution(params, obs, ctx):

@@ -5,16 +5,17 @@ compare agent names.
     register_agent(Agent("ppo_wide", ppo.PPOConfig, ppo.make_train, ppo.make_policy,
                          defaults=lambda env: {"hidden_sizes": (256, 256)}))
 
-An agent is a config dataclass (with ``validate()`` and a ``obs_context`` field), ``make_train(config,
-env, train_contexts) -> train(key, contexts)`` and ``make_policy(config, env, train_contexts) ->
-policy(params, obs, ctx, key)``. ``defaults(env_name)`` gives per-environment settings (the paper's)
-that the user's options override. An agent without ``make_train`` is not trained (the random baseline).
-For host environments (dm_control, Box2D…) an agent adds ``train_host(config, env_id, train_contexts,
-key, seed=..., init_params=None, **env_kwargs)`` on the shared host collector (``init_params``:
-parameters to continue training, for population-based tuning) and ``make_host_policy(config,
-action_space, observation_space, context_input) -> act(params, obs, context_input, key)``.
-``init_params(config, env, train_contexts, key)`` (optional) gives fresh parameters, so population-based
-tuning (the hpo protocol) compiles one training function that always continues given parameters.
+An agent is a config dataclass (with ``validate()`` and a ``variant`` field, one of :data:`VARIANTS`),
+``make_train(config, env, train_contexts) -> train(key, contexts)`` and ``make_policy(config, env,
+train_contexts) -> policy(params, obs, ctx, key)``. ``defaults(env_name)`` gives per-environment
+settings (the paper's) that the user's options override. An agent without ``make_train`` is not trained
+(the random baseline). For host environments (dm_control, Box2D…) an agent adds ``train_host(config,
+env_id, train_contexts, key, seed=..., init_params=None, **env_kwargs)`` on the shared host collector
+(``init_params``: parameters to continue training, for population-based tuning), and its
+``make_policy`` returns a :class:`~contextrl.agents.common.Policy`, whose ``act(params, obs,
+context_input, key)`` acts on the batches of a host loop. ``init_params(config, env, train_contexts,
+key)`` (optional) gives fresh parameters, so population-based tuning (the hpo protocol) compiles one
+training function that always continues given parameters.
 """
 
 from __future__ import annotations
@@ -24,12 +25,11 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import jax
-import numpy as np
 
 from contextrl.agents import dqn, ppo, sac
-from contextrl.agents.networks import ConfigError
-
-CONTEXT_OPTION = "obs_context"  # the config field that says how an agent sees the context
+from contextrl.agents.common import Policy
+from contextrl.agents.networks import ConfigError, ContextInput
+from contextrl.core.spaces import Box, Discrete
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,7 +44,6 @@ class Agent:
     actions: tuple[str, ...] = ("discrete", "continuous")
     doc: str = ""
     train_host: Callable | None = None
-    make_host_policy: Callable | None = None
     init_params: Callable | None = None
 
     @property
@@ -53,17 +52,15 @@ class Agent:
 
     @property
     def runs_on_host(self) -> bool:
-        return self.make_host_policy is not None and (
-            self.train_host is not None or not self.trained
-        )
+        return self.train_host is not None or not self.trained
 
     def option_names(self) -> list[str]:
         if self.config_type is None:
             return []
         return sorted(f.name for f in dataclasses.fields(self.config_type))
 
-    def config(self, env_name: str, options: Mapping[str, Any], obs_context: str = "hidden"):
-        """The validated config: the environment's defaults, then ``options``, then the visibility."""
+    def config(self, env_name: str, options: Mapping[str, Any], variant: str = "hidden"):
+        """The validated config: the environment's defaults, then ``options``, then the variant."""
         options = dict(options)
         if self.config_type is None:
             if options:
@@ -74,7 +71,7 @@ class Agent:
             raise ConfigError(
                 f"unknown {self.name} option(s) {unknown}; valid: {self.option_names()}"
             )
-        values = {**self.defaults(env_name), **options, CONTEXT_OPTION: obs_context}
+        values = {**self.defaults(env_name), **options, "variant": variant}
         try:
             config = self.config_type(**values)
         except TypeError as error:
@@ -98,25 +95,28 @@ class Agent:
             )
 
 
-def _random_policy(config, env, train_contexts) -> Callable:
-    """Uniform random actions: the no-learning baseline every report compares against."""
+def _random_policy(config, env, train_contexts) -> Policy:
+    """Uniform random actions, the no-learning baseline every report compares against: one
+    observation of a JAX environment at a time, or a batch of a host environment's (gymnasium
+    spaces)."""
+    space = env.action_space
+    if isinstance(space, (Box, Discrete)):
 
-    def policy(params, obs, ctx, key):
-        return env.action_space.sample(key)
+        def act(params, obs, context_vector, key):
+            return space.sample(key)
 
-    return policy
+    elif hasattr(space, "n"):
 
+        def act(params, obs, context_vector, key):
+            return jax.random.randint(key, (len(obs),), 0, int(space.n))
 
-def _random_host_policy(config, action_space, obs_space, context) -> Callable:
-    """Uniform random actions for a batch of host observations."""
-    if hasattr(action_space, "n"):
-        return lambda params, obs, context_input, key: jax.random.randint(
-            key, (len(obs),), 0, int(action_space.n)
-        )
-    low, high = np.asarray(action_space.low), np.asarray(action_space.high)
-    return lambda params, obs, context_input, key: jax.random.uniform(
-        key, (len(obs), *low.shape), minval=low, maxval=high
-    )
+    else:
+
+        def act(params, obs, context_vector, key):
+            shape = (len(obs), *space.low.shape)
+            return jax.random.uniform(key, shape, minval=space.low, maxval=space.high)
+
+    return Policy(act, ContextInput(), env.context_space)
 
 
 def _c51_defaults(env_name: str) -> dict[str, Any]:
@@ -168,7 +168,6 @@ register_agent(
         ppo.make_policy,
         doc="PPO (clipped)",
         train_host=ppo.train_gymnasium,
-        make_host_policy=ppo.make_host_policy,
         init_params=ppo.init_params,
     )
 )
@@ -181,7 +180,6 @@ register_agent(
         actions=("discrete",),
         doc="DQN",
         train_host=dqn.train_gymnasium,
-        make_host_policy=dqn.make_host_policy,
         init_params=dqn.init_params,
     )
 )
@@ -195,7 +193,6 @@ register_agent(
         actions=("discrete",),
         doc="C51 (distributional DQN; the paper's settings where it has them)",
         train_host=dqn.train_gymnasium,
-        make_host_policy=dqn.make_host_policy,
         init_params=dqn.init_params,
     )
 )
@@ -209,7 +206,6 @@ register_agent(
         actions=("continuous",),
         doc="SAC (the paper's settings where it has them)",
         train_host=sac.train_gymnasium,
-        make_host_policy=sac.make_host_policy,
         init_params=sac.init_params,
     )
 )
@@ -220,6 +216,5 @@ register_agent(
         None,
         _random_policy,
         doc="uniform random actions",
-        make_host_policy=_random_host_policy,
     )
 )

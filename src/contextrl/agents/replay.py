@@ -9,9 +9,51 @@ time limit, no bootstrap when it terminated).
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, TypedDict
 
 import jax
 import jax.numpy as jnp
+
+
+class Transition(TypedDict):
+    """One vector step as the replay stores it, every field with a leading ``num_envs`` axis; the
+    compiled loops and the host loop build it alike, with :func:`transition`."""
+
+    obs: Any
+    context: Any  # the agent's context input
+    action: Any
+    reward: Any
+    terminated: Any
+    done: Any
+    next_obs: Any  # the final observation where the episode ended
+
+
+def transition(obs, context, action, step) -> Transition:
+    """The transition of ``step`` (a JAX ``TimeStep`` or a host step) taken with ``action`` from
+    ``obs`` and ``context``."""
+    return Transition(
+        obs=obs,
+        context=context,
+        action=action,
+        reward=step.reward,
+        terminated=step.terminated,
+        done=step.done,
+        next_obs=step.final_obs,
+    )
+
+
+def transition_example(obs, context, action) -> Transition:
+    """A transition shaped like one vector step from ``obs``, to size a buffer."""
+    num_envs = obs.shape[0]
+    return Transition(
+        obs=obs,
+        context=context,
+        action=action,
+        reward=jnp.zeros((num_envs,), jnp.float32),
+        terminated=jnp.zeros((num_envs,), bool),
+        done=jnp.zeros((num_envs,), bool),
+        next_obs=obs,
+    )
 
 
 @jax.tree_util.register_dataclass
@@ -24,7 +66,7 @@ class Replay:
     size: jax.Array
 
     @classmethod
-    def create(cls, capacity: int, example: dict) -> Replay:
+    def create(cls, capacity: int, example: Transition) -> Replay:
         """An empty buffer for ``capacity`` vector steps shaped like ``example`` (one vector step)."""
         data = {
             name: jnp.zeros((capacity,) + jnp.shape(value), jnp.asarray(value).dtype)
@@ -37,8 +79,8 @@ class Replay:
     def capacity(self) -> int:
         return next(iter(self.data.values())).shape[0]
 
-    def add(self, transition: dict) -> Replay:
-        """Store one vector step (obs, context, action, reward, terminated, done, next_obs…)."""
+    def add(self, transition: Transition) -> Replay:
+        """Store one vector step."""
         data = {
             name: buffer.at[self.position].set(transition[name])
             for name, buffer in self.data.items()

@@ -1,13 +1,13 @@
 """Soft Actor-Critic for continuous actions (twin critics, tanh-squashed Gaussian policy, automatic
 entropy tuning); the whole run one JAX function.
 
-    config = sac.SACConfig(obs_context="concat_varying")
+    config = sac.SACConfig(variant="concat_varying")
     config = sac.paper_config("Pendulum")               # the paper's SAC hyper-parameters
     train = sac.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
 
-``train(key, contexts=None, params=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of uniform random
-actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
+``train(key, contexts=None, params=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of
+uniform random actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
 followed by one actor (and temperature) update; each logging period is one metrics row.
 """
 
@@ -25,42 +25,40 @@ import numpy as np
 import optax
 
 from contextrl.agents.common import (
+    AgentConfig,
     EpisodeLog,
+    Policy,
     Progress,
     TrainResult,
-    check_env,
+    agent_inputs,
     contextual_env_factory,
     num_context_ids,
 )
-from contextrl.agents.host import HostLearner, HostSchedule, HostStep, train_on_host
+from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
 from contextrl.agents.networks import (
     ConditionedMLP,
     ConfigError,
     ContextInput,
     check_fraction,
-    check_hidden_sizes,
     check_positive,
-    context_input,
 )
-from contextrl.agents.replay import Replay
+from contextrl.agents.replay import Replay, transition, transition_example
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
 @dataclasses.dataclass(frozen=True)
-class SACConfig:
+class SACConfig(AgentConfig):
     """SAC hyper-parameters (defaults: CleanRL's continuous-control settings)."""
 
     total_timesteps: int = 50_000
-    """Environment steps over all copies, warm-up included; rounded down to whole logging periods."""
     num_envs: int = 1
-    """Environment copies stepped in parallel."""
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    activation: str = "relu"
     buffer_size: int = 100_000
     """Replay capacity in transitions (over all copies)."""
     batch_size: int = 256
     """Transitions per gradient step."""
-    gamma: float = 0.99
-    """Discount factor."""
     n_step: int = 1
     """Steps summed in each return before bootstrapping."""
     tau: float = 0.005
@@ -77,47 +75,20 @@ class SACConfig:
     """Entropy temperature (the initial one when autotune is on)."""
     autotune: bool = True
     """Tune the temperature towards an entropy of −(action dimensions)."""
-    hidden_sizes: tuple[int, ...] = (256, 256)
-    """Widths of the hidden layers of actor and critics."""
-    activation: str = "relu"
-    """Hidden activation: "relu" or "tanh"."""
-    obs_context: str = "hidden"
-    """How the agent sees the context: "hidden", "concat_all", "concat_varying" or "gated"."""
-    context_selector: str = "round_robin"
-    """How a context set is visited at each reset: "round_robin" (the default everywhere), "random"
-    or "static"; copy i of N runs global episodes i, i + N, …"""
     log_every: int = 1000
     """Environment steps per metrics row (rounded to whole actor updates)."""
-    episode_log_size: int = 1000
-    """How many of the most recent episodes the result keeps individually."""
-    progress_every: int = 0
-    """Print a progress line every this many metrics rows (0: silent)."""
-
-    def __post_init__(self):
-        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
 
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""
-        for name in (
-            "total_timesteps",
-            "num_envs",
-            "buffer_size",
-            "batch_size",
-            "n_step",
-            "policy_frequency",
-            "log_every",
-            "episode_log_size",
-        ):
+        super().validate()
+        for name in ("buffer_size", "batch_size", "n_step", "policy_frequency", "log_every"):
             check_positive(name, getattr(self, name), integer=True)
         check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
-        check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
         for name in ("policy_lr", "q_lr", "alpha"):
             check_positive(name, getattr(self, name))
-        for name in ("gamma", "tau"):
-            check_fraction(name, getattr(self, name))
+        check_fraction("tau", self.tau)
         if self.tau == 0:
             raise ConfigError("tau must be > 0 (0 would never update the target critics)")
-        check_hidden_sizes(self.hidden_sizes, self.activation)
         if self.buffer_size < self.num_envs * max(self.n_step, 2):
             raise ConfigError(
                 f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
@@ -188,23 +159,20 @@ class _Networks:
         return self.action_low + (squashed + 1.0) * 0.5 * (self.action_high - self.action_low)
 
 
-def _networks(config: SACConfig, env, train_contexts) -> _Networks:
-    config.validate()
-    check_env(env, "SAC")
-    context = context_input(config.obs_context, env.context_space, train_contexts)
-    return _build_networks(config, env.name, env.action_space, env.observation_space, context)
-
-
-def _build_networks(config: SACConfig, name: str, action_space, obs_space, context) -> _Networks:
-    """Actor and critics for these spaces (contextrl's or gymnasium's Box)."""
+def _networks(
+    config: SACConfig, observation_space, action_space, context: ContextInput
+) -> _Networks:
+    """Actor and critics for these spaces (contextrl's or gymnasium's Box) and context input."""
     low, high = getattr(action_space, "low", None), getattr(action_space, "high", None)
     if low is None or len(action_space.shape) != 1 or hasattr(action_space, "n"):
-        raise ConfigError(f"SAC needs a 1-D Box action space; {name} has {action_space!r}")
+        raise ConfigError(f"SAC needs a 1-D Box action space, got {action_space!r}")
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
-        raise ConfigError(f"SAC squashes actions into bounds; {name}'s action bounds are infinite")
-    obs_shape = obs_space.shape
+        raise ConfigError(
+            f"SAC squashes actions into bounds; the action bounds are infinite: {action_space!r}"
+        )
+    obs_shape = observation_space.shape
     if len(obs_shape) != 1:
-        raise ConfigError(f"SAC needs a flat (1-D) observation, {name} gives shape {obs_shape}")
+        raise ConfigError(f"SAC needs a flat (1-D) observation, got shape {obs_shape}")
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
     action_size = action_space.shape[0]
     actor = ConditionedMLP(obs_shape[0], 2 * action_size, out_scale=0.01, **common)
@@ -243,7 +211,7 @@ def _twin_q(nets: _Networks, critic_params, obs, context_vector, action):
 
 def init_params(config: SACConfig, env, train_contexts: Any, key) -> dict:
     """Freshly initialised actor, twin critics and log-temperature."""
-    return _init(_networks(config, env, train_contexts), config, key)
+    return _init(_networks(config, *agent_inputs(config, env, train_contexts, "SAC")), config, key)
 
 
 def _init(nets: _Networks, config: SACConfig, key) -> dict:
@@ -321,7 +289,7 @@ def _learner(config: SACConfig, nets: _Networks):
 
 def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
     """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, env, train_contexts)
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "SAC", host=False))
     build_env = contextual_env_factory(env, train_contexts, config.context_selector)
     num_contexts = num_context_ids(env, train_contexts)
     space = env.context_space
@@ -342,16 +310,10 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
         obs = timestep.obs
-        example = {
-            "obs": obs,
-            "context": context_of(env_state.context),
-            "action": jnp.zeros((num_envs, nets.action_size), jnp.float32),
-            "reward": jnp.zeros((num_envs,), jnp.float32),
-            "terminated": jnp.zeros((num_envs,), bool),
-            "done": jnp.zeros((num_envs,), bool),
-            "next_obs": obs,
-        }
-        replay = Replay.create(capacity, example)
+        action = jnp.zeros((num_envs, nets.action_size), jnp.float32)
+        replay = Replay.create(
+            capacity, transition_example(obs, context_of(env_state.context), action)
+        )
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
 
         def env_step(carry, action_fn):
@@ -361,17 +323,7 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
             action = action_fn(obs, context_vector, action_key)
             env_state, timestep = cenv.step_copies(env_state, nets.to_env(action))
             step = step + num_envs
-            replay = replay.add(
-                {
-                    "obs": obs,
-                    "context": context_vector,
-                    "action": action,
-                    "reward": timestep.reward,
-                    "terminated": timestep.terminated,
-                    "done": timestep.done,
-                    "next_obs": timestep.final_obs,
-                }
-            )
+            replay = replay.add(transition(obs, context_vector, action, timestep))
             log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
             return env_state, timestep.obs, replay, log, step, key
 
@@ -479,16 +431,13 @@ class _HostLearner(HostLearner):
     """
 
     def __init__(self, config: SACConfig, collector, key, init_params=None):
-        nets = _build_networks(
-            config,
-            collector.env_name,
-            *collector.agent_inputs,
-        )
+        nets = _networks(config, *collector.agent_inputs)
         init, critic_update, actor_update = _learner(config, nets)
         num_envs = config.num_envs
         self._nets, self._num_envs = nets, num_envs
         self._policy_frequency, self._round = config.policy_frequency, 0
-        example = HostStep.example(collector, np.zeros((num_envs, nets.action_size), np.float32))
+        action = np.zeros((num_envs, nets.action_size), np.float32)
+        example = transition_example(collector.obs, collector.context, action)
         capacity = max(config.buffer_size // num_envs, config.n_step + 1)
 
         @jax.jit
@@ -559,7 +508,7 @@ class _HostLearner(HostLearner):
         return self._nets.to_env(self._action)
 
     def store(self, obs, context, step, warmup):
-        self._replay = self._add(self._replay, step.transition(obs, context, self._action))
+        self._replay = self._add(self._replay, transition(obs, context, self._action, step))
         if warmup:
             return
         self._round = (self._round + 1) % self._policy_frequency
@@ -580,36 +529,20 @@ class _HostLearner(HostLearner):
         }
 
 
-def make_host_policy(config: SACConfig, action_space, obs_space, context) -> Callable:
-    """``act(params, obs, context_input, key) -> env actions`` (tanh of the mean) for a batch of host
-    observations; ``context`` is the training ContextInput."""
-    nets = _build_networks(config, "the environment", action_space, obs_space, context)
+def make_policy(config: SACConfig, env, train_contexts: Any, deterministic: bool = True) -> Policy:
+    """The :class:`~contextrl.agents.common.Policy` of an agent trained on ``train_contexts`` in ``env``
+    (a JAX or a host environment): actions in the environment's bounds, the tanh of the mean when
+    deterministic, a sample otherwise."""
+    nets = _networks(config, *agent_inputs(config, env, train_contexts, "SAC"))
 
-    @jax.jit
     def act(params, obs, context_vector, key):
-        mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
-        return nets.to_env(jnp.tanh(mean))
-
-    return act
-
-
-def make_policy(
-    config: SACConfig, env, train_contexts: Any, deterministic: bool = True
-) -> Callable[[Any, jax.Array, Any, Any], jax.Array]:
-    """``policy(params, obs, ctx, key) -> action`` in the environment's bounds (tanh of the mean when
-    deterministic, a sample otherwise)."""
-    nets = _networks(config, env, train_contexts)
-    space = env.context_space
-
-    def policy(params, obs, ctx, key):
-        context_vector = nets.context.vector(space, ctx)
         if deterministic:
             mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
             return nets.to_env(jnp.tanh(mean))
         action, _ = _sample_action(nets, params["actor"], obs, context_vector, key)
         return nets.to_env(action)
 
-    return policy
+    return Policy(act, nets.context, env.context_space)
 
 
 def action_mean(config: SACConfig, env, train_contexts: Any) -> Callable:

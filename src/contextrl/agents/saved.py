@@ -44,6 +44,8 @@ class SavedPolicy:
 def _rebuild_config(config_type: type, values: dict) -> Any:
     """The config dataclass from its JSON dict (lists back to tuples where the field is a tuple)."""
     hints = typing.get_type_hints(config_type)
+    if "obs_context" in values and "variant" not in values:  # saved before the field was renamed
+        values = {("variant" if k == "obs_context" else k): v for k, v in values.items()}
     fixed = {
         name: tuple(value) if isinstance(value, list) and "tuple" in str(hints.get(name)) else value
         for name, value in values.items()

@@ -27,7 +27,6 @@ import pandas as pd
 import yaml
 
 from contextrl.agents import ConfigError, evaluate, get_agent, load_checkpoint, save_checkpoint
-from contextrl.agents.networks import ContextInput
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import figure, score_matrices
@@ -256,8 +255,7 @@ def _evaluator(spec: HPOSpec, env, config, train_set, agent: str | None = None):
         run = jax.jit(lambda p, c, k: evaluate(policy, p, env, c, spec.eval_episodes, k))
         return lambda params, contexts, key: np.asarray(run(params, contexts, key))
     context = host_context_input(spec, spec.variants[0], env, train_set)
-    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
-    act = entry.make_host_policy(config, *spaces, context if entry.trained else ContextInput())
+    act = jax.jit(entry.make_policy(config, env, train_set).act)
 
     def returns(params, contexts, key):
         return host_returns(spec, context, act, params, contexts, spec.eval_episodes, key)

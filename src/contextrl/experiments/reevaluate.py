@@ -99,8 +99,7 @@ def evaluate_run(
         ]
         if spec.host:  # host copies of the new contexts, one agent after the other
             context = host_context_input(spec, variant, env, template)
-            spaces = (env.action_space, env.base_observation_space)
-            act = agent.make_host_policy(spec.agent_config(variant), *spaces, context)
+            act = jax.jit(agent.make_policy(spec.agent_config(variant), env, template).act)
             returns = np.stack(
                 [
                     host_returns(spec, context, act, params, contexts, episodes, key)

@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 import yaml
 
 import contextrl as crl
-from contextrl.agents import ConfigError, get_agent
+from contextrl.agents import VARIANTS, ConfigError, get_agent
 from contextrl.context.distributions import (
     Categorical,
     Constant,
@@ -36,7 +36,6 @@ from contextrl.context.distributions import (
 )
 from contextrl.context.features import ContextError
 
-VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")
 DISTRIBUTION_NAMES = {
     "uniform": Uniform,
     "log_uniform": LogUniform,

@@ -147,9 +147,8 @@ def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
     variant = trials[0].variant
     config = spec.agent_config(variant)
     context = host_context_input(spec, variant, env, template)
-    spaces = (env.action_space, env.base_observation_space)  # agents add the context themselves
-    act = agent.make_host_policy(config, *spaces, context)
-    random_act = get_agent("random").make_host_policy(None, *spaces, ContextInput())
+    act = jax.jit(agent.make_policy(config, env, template).act)
+    random_act = jax.jit(get_agent("random").make_policy(None, env, template).act)
     limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
 
     def evaluate(policy, params, contexts, key) -> np.ndarray:
