@@ -91,14 +91,15 @@ def main() -> None:
         for seed in args.seed_sets:
             run, seconds = run_finding(name, seed, args.out, args.executor)
             rows = FINDINGS[name].statistic(run)
-            table.append((name, seed, f"{seconds / 60:.1f} min", rows))
-            print(f"done: {name} seed {seed} in {seconds / 60:.1f} min", flush=True)
+            chunks = sum(run.timings().values())
+            table.append((name, seed, f"{chunks / 60:.1f} min of training, summed over chunks", rows))
+            print(f"done: {name} seed {seed}, {seconds / 60:.1f} min in this call", flush=True)
     for name in args.only:
         print(f"\n{name}: {FINDINGS[name].claim}  ({FINDINGS[name].spec})")
         for finding, seed, wall, rows in table:
             if finding != name:
                 continue
-            print(f"  seed set {seed} (wall {wall}, this run or its resume):")
+            print(f"  seed set {seed} ({wall}):")
             width = max(len(label) for label, _ in rows)
             for label, value in rows:
                 print(f"    {label:<{width}}  {value}")
