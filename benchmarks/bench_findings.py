@@ -92,7 +92,9 @@ def main() -> None:
             run, seconds = run_finding(name, seed, args.out, args.executor)
             rows = FINDINGS[name].statistic(run)
             chunks = sum(run.timings().values())
-            table.append((name, seed, f"{chunks / 60:.1f} min of training, summed over chunks", rows))
+            table.append(
+                (name, seed, f"{chunks / 60:.1f} min of training, summed over chunks", rows)
+            )
             print(f"done: {name} seed {seed}, {seconds / 60:.1f} min in this call", flush=True)
     for name in args.only:
         print(f"\n{name}: {FINDINGS[name].claim}  ({FINDINGS[name].spec})")
