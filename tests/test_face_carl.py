@@ -395,3 +395,113 @@ def test_context_part_is_fixed_per_episode_unless_noisy():
     values = {float(noisy.reset(seed=0)[0]["context"]["length"][0])}
     values |= {float(noisy.step(0)[0]["context"]["length"][0]) for _ in range(5)}
     assert len(values) == 6 and all(0.05 <= v <= 5.0 for v in values)
+
+
+CUSTOM_ENV_EXAMPLE = """
+from carl.envs.carl_env import CARLEnv
+from carl.context.context_space import (
+    CategoricalContextFeature,
+    ContextSpace,
+    NormalFloatContextFeature,
+    UniformFloatContextFeature,
+    UniformIntegerContextFeature,
+)
+from carl.context.sampler import ContextSampler
+
+
+class CARLMyEnv(CARLEnv):
+    @staticmethod
+    def get_context_features():
+        return {
+            "gravity": UniformFloatContextFeature("gravity", lower=1.0, upper=20.0, default_value=9.8),
+            "friction": NormalFloatContextFeature(
+                "friction", mu=0.5, sigma=0.1, lower=0.0, upper=1.0, default_value=0.5
+            ),
+            "n_legs": UniformIntegerContextFeature("n_legs", lower=2, upper=8, default_value=4),
+            "terrain": CategoricalContextFeature("terrain", choices=["flat", "hills"], default_value="flat"),
+        }
+
+
+space = CARLMyEnv.get_context_space()
+direct = ContextSpace(CARLMyEnv.get_context_features())
+sampler = ContextSampler(
+    context_distributions=[NormalFloatContextFeature("gravity", mu=9.8, sigma=1.0)],
+    context_space=space,
+    seed=42,
+)
+contexts = sampler.sample_contexts(n_contexts=5)
+"""
+
+
+def test_a_users_own_env_declares_its_context_space_from_carl_features():
+    namespace = run_carl(CUSTOM_ENV_EXAMPLE)
+    space, direct = namespace["space"], namespace["direct"]
+    defaults = {"gravity": 9.8, "friction": 0.5, "n_legs": 4, "terrain": "flat"}
+    for each in (space, direct):
+        assert each.context_feature_names == ["gravity", "friction", "n_legs", "terrain"]
+        assert each.get_default_context() == defaults
+        assert each.insert_defaults({"gravity": 3.0}) == {**defaults, "gravity": 3.0}
+        assert each.insert_defaults({"gravity": 3.0}, ["n_legs"]) == {"n_legs": 4, "gravity": 3.0}
+        assert each.verify_context({"gravity": 3.0, "n_legs": 6})
+        assert not each.verify_context({"gravity": 30.0})
+        assert not each.verify_context({"mass": 1.0})
+        assert each.get_lower_and_upper_bound("gravity") == (1.0, 20.0)
+        assert each.get_lower_and_upper_bound("n_legs") == (2, 8)
+    box = space.to_gymnasium_space(["gravity", "n_legs"])
+    np.testing.assert_array_equal(box.low, [1.0, 2.0])
+    np.testing.assert_array_equal(box.high, [20.0, 8.0])
+    assert set(space.to_gymnasium_space(as_dict=True).spaces) == set(defaults)
+    contexts = namespace["contexts"]
+    assert list(contexts) == [0, 1, 2, 3, 4]
+    assert len({c["gravity"] for c in contexts.values()}) == 5
+    for context in contexts.values():
+        assert {k: v for k, v in context.items() if k != "gravity"} == {
+            k: v for k, v in defaults.items() if k != "gravity"
+        }
+        assert 1.0 <= context["gravity"] <= 20.0 and space.verify_context(context)
+    drawn = space.sample_contexts(size=50, seed=3)
+    assert {c["terrain"] for c in drawn} == {"flat", "hills"}
+    assert {c["n_legs"] for c in drawn} <= set(range(2, 9)) and len(
+        {c["n_legs"] for c in drawn}
+    ) > 3
+    assert all(isinstance(c["n_legs"], int) for c in drawn)
+    frictions = np.array([c["friction"] for c in drawn])  # the declared normal, not the whole range
+    assert abs(frictions.mean() - 0.5) < 0.05 and frictions.std() < 0.15
+
+
+def test_declared_features_take_carls_defaults_and_refuse_what_cannot_be_a_space():
+    from contextrl.carl.context.context_space import (
+        CategoricalContextFeature,
+        ContextSpace,
+        NormalFloatContextFeature,
+        UniformFloatContextFeature,
+        UniformIntegerContextFeature,
+    )
+
+    space = ContextSpace(
+        {
+            "a": UniformFloatContextFeature("a", lower=1.0, upper=3.0),
+            "b": UniformFloatContextFeature("b", lower=1.0, upper=100.0, log=True),
+            "c": UniformIntegerContextFeature("c", lower=1, upper=4),
+            "d": NormalFloatContextFeature("d", mu=0.2, sigma=1.0, lower=-1.0, upper=1.0),
+            "e": CategoricalContextFeature("e", choices=["x", "y"], weights=[0.2, 0.8]),
+        }
+    )
+    assert space.get_default_context() == {"a": 2.0, "b": 10.0, "c": 2, "d": 0.2, "e": "y"}
+    with pytest.raises(crl.ContextError, match="finite lower and upper"):
+        ContextSpace({"g": NormalFloatContextFeature("g", mu=9.8, sigma=1.0)})
+    with pytest.raises(crl.ContextError, match="g: default"):
+        ContextSpace(
+            {"g": UniformFloatContextFeature("g", lower=1.0, upper=2.0, default_value=5.0)}
+        )
+    with pytest.raises(crl.ContextError, match="names the feature"):
+        ContextSpace({"g": UniformFloatContextFeature("gravity", lower=1.0, upper=2.0)})
+
+
+def test_carl_envs_lists_its_environment_classes_as_module_attributes():
+    import contextrl.carl.envs as envs
+    import contextrl.carl.envs.gymnasium as gymnasium_envs
+
+    assert {"CARLCartPole", "CARLPendulum", *envs.carl_names()} <= set(vars(envs))
+    assert vars(envs)["CARLCartPole"] is CARLCartPole and "CARLCartPole" in dir(envs)
+    assert set(envs.carl_names("classic_control")) <= set(vars(gymnasium_envs))

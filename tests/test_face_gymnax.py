@@ -1,5 +1,7 @@
 """The gymnax face: gymnax's calls and conventions over the core, params as contexts, PPO learning."""
 
+import sys
+
 import jax
 import jax.numpy as jnp
 import learning  # tests/learning.py: the runs the learning tests share with their margin script
@@ -8,6 +10,7 @@ import pytest
 
 import contextrl as crl
 import contextrl.gymnax as gymnax
+from contextrl.core.spaces import Box, Discrete
 
 # Of Brax, whose MJX programs take minutes to compile on a CPU, the cheapest task: its ten envs share
 # one base, so the face's calls are the same for all of them.
@@ -107,3 +110,82 @@ def test_purejaxrl_style_ppo_learns_contextual_cartpole():
     first, last = statistics["first_updates"], statistics["last_updates"]
     assert np.all(first < 60), first
     assert np.all(last >= 150) and np.median(last) >= 350, last
+
+
+# ---- PureJaxRL's wrappers check gymnax's own space classes ----------------------------------------------
+class SpaceCheckingFlatten:
+    """PureJaxRL's ``FlattenObservationWrapper``: refuses any space that is not gymnax's own class."""
+
+    def __init__(self, env, params):
+        from gymnax.environments import spaces
+
+        assert isinstance(env.observation_space(params), spaces.Box), (
+            "Only Box spaces are supported"
+        )
+        assert isinstance(env.action_space(params), spaces.Discrete)
+        self._env = env
+
+    def __getattr__(self, name):
+        return getattr(self._env, name)
+
+    def reset(self, key, params):
+        obs, state = self._env.reset(key, params)
+        return jnp.reshape(obs, (-1,)), state
+
+    def step(self, key, state, action, params):
+        obs, state, reward, done, info = self._env.step(key, state, action, params)
+        return jnp.reshape(obs, (-1,)), state, reward, done, info
+
+
+class EpisodeReturns(SpaceCheckingFlatten):
+    """PureJaxRL's ``LogWrapper``: the running return, and the return of each finished episode."""
+
+    def reset(self, key, params):
+        obs, state = super().reset(key, params)
+        return obs, (state, jnp.float32(0.0), jnp.float32(0.0))
+
+    def step(self, key, state, action, params):
+        env_state, running, _ = state
+        obs, env_state, reward, done, info = super().step(key, env_state, action, params)
+        running = running + reward
+        info["returned_episode_return"] = jnp.where(done, running, 0.0)
+        return (
+            obs,
+            (env_state, running * (1 - done), info["returned_episode_return"]),
+            reward,
+            done,
+            info,
+        )
+
+
+def test_purejaxrl_wrappers_see_gymnax_space_classes_and_run_300_steps():
+    env, params = gymnax.make("CartPole-v1")
+    wrapped = EpisodeReturns(env, params)
+    batch = crl.sample(params, {"length": crl.Uniform(0.25, 2.0)}, 8, jax.random.key(0))
+    obs, state = jax.vmap(wrapped.reset)(jax.random.split(jax.random.key(1), 8), batch)
+    assert obs.shape == (8, *wrapped.observation_space(params).shape)
+
+    def one_step(carry, key):
+        state = carry
+        action_key, step_key = jax.random.split(key)
+        actions = jax.vmap(wrapped.action_space(params).sample)(jax.random.split(action_key, 8))
+        obs, state, reward, done, info = jax.vmap(wrapped.step)(
+            jax.random.split(step_key, 8), state, actions, batch
+        )
+        return state, (reward, done, info["returned_episode_return"])
+
+    _, (rewards, dones, returns) = jax.jit(
+        lambda s: jax.lax.scan(one_step, s, jax.random.split(jax.random.key(2), 300))
+    )(state)
+    assert rewards.shape == (300, 8) and float(rewards.sum()) == 300 * 8  # CartPole: 1 per step
+    finished = np.asarray(returns)[np.asarray(dones)]
+    assert (
+        finished.size > 8 and np.all(finished >= 1) and finished.sum() <= 300 * 8
+    )  # random play falls
+
+
+def test_without_gymnax_the_spaces_are_contextrls(monkeypatch):
+    monkeypatch.setitem(sys.modules, "gymnax", None)  # what an environment without gymnax sees
+    env, params = gymnax.make("CartPole")
+    assert isinstance(env.observation_space(params), Box)
+    assert isinstance(env.action_space(params), Discrete)

@@ -14,12 +14,14 @@ holds ``terminated``, ``truncated``, ``discount`` (0 at a termination, else 1) a
 
 Where it differs from gymnax: the time limit is static configuration (``make(id, max_steps=...)``), not
 ``params.max_steps_in_episode``; derived constants (CartPole's ``total_mass``, ``polemass_length``) are
-not params but computed from the context in every step, so they can never go stale; the spaces are
-contextrl's (``n``, ``shape``, ``dtype``, ``low``, ``high``, ``sample(key)`` as gymnax's).
+not params but computed from the context in every step, so they can never go stale. The spaces are
+gymnax's own classes when gymnax is installed (so trainers' ``isinstance(space, spaces.Box)`` checks
+pass), contextrl's otherwise (with gymnax's ``n``, ``shape``, ``dtype``, ``low``, ``high``, ``sample(key)``).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from typing import Any
 
@@ -41,6 +43,8 @@ class Environment:
 
     def __init__(self, env: Env):
         self.env = env
+        self._action_space = gymnax_space(env.action_space)
+        self._observation_space = gymnax_space(env.observation_space)
         self.reset = jax.jit(self._reset)
         self.step = jax.jit(self._step)
 
@@ -61,12 +65,12 @@ class Environment:
         space = self.env.action_space
         return space.n if isinstance(space, Discrete) else int(space.shape[0])
 
-    def action_space(self, params: Any = None) -> Discrete | Box:
-        return self.env.action_space
+    def action_space(self, params: Any = None) -> Any:
+        return self._action_space
 
-    def observation_space(self, params: Any = None) -> Box:
+    def observation_space(self, params: Any = None) -> Any:
         """The same for every params: wide enough for every context inside the bounds."""
-        return self.env.observation_space
+        return self._observation_space
 
     def _reset(self, key: jax.Array, params: Any = None) -> tuple[jax.Array, EnvState]:
         state, timestep = self.env.reset(key, self._params(params))
@@ -86,6 +90,21 @@ class Environment:
 
     def _params(self, params: Any):
         return self.default_params if params is None else params
+
+
+def gymnax_space(space: Discrete | Box) -> Any:
+    """gymnax's own space class for a contextrl space when gymnax is installed, so code written for
+    gymnax that checks ``isinstance(space, gymnax.environments.spaces.Box)`` runs; the space unchanged
+    otherwise."""
+    if importlib.util.find_spec("gymnax") is None:
+        return space
+    from gymnax.environments import spaces
+
+    if isinstance(space, Discrete):
+        discrete = spaces.Discrete(space.n)
+        discrete.dtype = space.dtype  # int32, the dtype the core steps with (gymnax's says int64)
+        return discrete
+    return spaces.Box(space.low, space.high, space.shape, space.dtype)
 
 
 def _jax_ids() -> list[str]:

@@ -26,6 +26,10 @@ contextrl, and each difference is listed here:
 - Setting ``env.context_id`` chooses the context of the next episode (CARL switches the running episode's
   physics mid-way, then its selector moves on at the next reset).
 - ``NormalFloatContextFeature`` needs no bounds: without them it is truncated to the feature's bounds.
+- ``ContextSpace`` built from a user's own features (``ContextSpace({...})`` or a ``CARLEnv`` subclass's
+  ``get_context_features()``) declares a contextrl context type: every feature needs finite bounds,
+  categorical choices are strings, and values are checked as for a built-in environment. Such a subclass
+  describes contexts only; what runs is a registered contextrl environment.
 - ``ContextSampler`` takes a list or dict of feature classes, not a ConfigSpace search-space string or
   ``DictConfig``; the feature classes are plain dataclasses, not ConfigSpace hyperparameters. A feature
   is drawn as the kind contextrl declares it (an integer class over a float feature draws floats).

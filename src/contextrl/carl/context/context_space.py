@@ -3,12 +3,14 @@
 A CARL context feature names a feature and a distribution over it; here each one turns into the
 distribution contextrl samples from (``Uniform``, ``LogUniform``, ``Normal``, ``Categorical``), checked
 against the environment's declared bounds before anything is drawn. ``ContextSpace`` answers CARL's
-questions (names, defaults, bounds, gymnasium space, validity) from the environment's declarations.
+questions (names, defaults, bounds, gymnasium space, validity) from the environment's declarations, or,
+for a user's own environment, from a contextrl context type declared from the user's features.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Hashable, Mapping, Sequence
 from typing import Any
 
@@ -18,7 +20,7 @@ import numpy as np
 
 from contextrl.carl.utils.types import Context
 from contextrl.context import distributions
-from contextrl.context.features import ContextError
+from contextrl.context.features import ContextBase, ContextError, context_type, feature
 from contextrl.context.features import ContextSpace as CoreSpace
 
 
@@ -30,6 +32,20 @@ class ContextFeature:
 
     def distribution(self) -> distributions.Distribution:
         raise NotImplementedError
+
+    def declaration(self) -> dict[str, Any]:
+        """The arguments of contextrl's ``feature(...)`` declaring this feature (default, bounds, kind)."""
+        raise NotImplementedError
+
+    def bounds(self) -> tuple[float, float]:
+        lower, upper = getattr(self, "lower", None), getattr(self, "upper", None)
+        if lower is None or upper is None or not math.isfinite(lower) or not math.isfinite(upper):
+            raise ContextError(
+                f"{self.name}: a context space needs finite lower and upper bounds, got "
+                f"lower={lower!r}, upper={upper!r}; e.g. {type(self).__name__}({self.name!r}, "
+                "lower=0.1, upper=10.0, ...)"
+            )
+        return lower, upper
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +66,14 @@ class UniformFloatContextFeature(NumericalContextFeature):
     def distribution(self) -> distributions.Distribution:
         kind = distributions.LogUniform if self.log else distributions.Uniform
         return kind(self.lower, self.upper)
+
+    def declaration(self) -> dict[str, Any]:
+        """Without a ``default_value``, the middle of the range (geometric with ``log``), as CARL's."""
+        lower, upper = self.bounds()
+        default = self.default_value
+        if default is None:
+            default = math.sqrt(lower * upper) if self.log else (lower + upper) / 2
+        return integral(self, dict(default=default, lower=lower, upper=upper))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +98,12 @@ class NormalFloatContextFeature(ContextFeature):
             raise ContextError(f"{self.name}: a log-normal context feature is not supported")
         return distributions.Normal(self.mu, self.sigma, self.lower, self.upper)
 
+    def declaration(self) -> dict[str, Any]:
+        """Without a ``default_value``, the mean ``mu``, as CARL's."""
+        lower, upper = self.bounds()
+        default = self.mu if self.default_value is None else self.default_value
+        return integral(self, dict(default=default, lower=lower, upper=upper))
+
 
 @dataclasses.dataclass(frozen=True)
 class NormalIntegerContextFeature(NormalFloatContextFeature):
@@ -91,6 +121,53 @@ class CategoricalContextFeature(ContextFeature):
 
     def distribution(self) -> distributions.Distribution:
         return distributions.Categorical(tuple(self.choices), self.weights)
+
+    def declaration(self) -> dict[str, Any]:
+        """Without a ``default_value``, the most likely choice (the first when unweighted), as CARL's."""
+        if not self.choices or not all(isinstance(c, str) for c in self.choices):
+            raise ContextError(
+                f"{self.name}: a context space needs named choices (strings), got "
+                f"{list(self.choices)!r}; e.g. choices=['low', 'high']"
+            )
+        default = self.default_value
+        if default is None:
+            weights = self.weights or [1.0] * len(self.choices)
+            default = self.choices[weights.index(max(weights))]
+        return dict(
+            default=default, lower=0, upper=0, kind="categorical", choices=tuple(self.choices)
+        )
+
+
+INTEGRAL = (UniformIntegerContextFeature, NormalIntegerContextFeature)
+
+
+def integral(feature: ContextFeature, declaration: dict[str, Any]) -> dict[str, Any]:
+    """An integer feature's declaration: kind int, its default rounded."""
+    if isinstance(feature, INTEGRAL):
+        return {**declaration, "default": round(declaration["default"]), "kind": "int"}
+    return declaration
+
+
+def declared_space(context_space: Mapping[str, ContextFeature]) -> CoreSpace:
+    """contextrl's context space of user-declared CARL features: a context type built from them, so
+    validation, sampling and conversion are the core's, as for a registered environment."""
+    namespace: dict[str, Any] = {"__annotations__": {}}
+    for key, declared in context_space.items():
+        if not isinstance(declared, ContextFeature):
+            raise ContextError(
+                f"{key}: expected a context feature (UniformFloatContextFeature, "
+                f"NormalFloatContextFeature, ...), got {declared!r}"
+            )
+        if key != declared.name:
+            raise ContextError(f"the key {key!r} names the feature {declared.name!r}")
+        if not key.isidentifier() or hasattr(ContextBase, key):
+            raise ContextError(f"{key!r} cannot name a context feature; use a Python identifier")
+        try:
+            namespace[key] = feature(**declared.declaration())
+        except ValueError as error:
+            raise ContextError(f"{key}: {error}") from None
+        namespace["__annotations__"][key] = Any
+    return context_type(type("DeclaredContext", (ContextBase,), namespace)).space
 
 
 def feature_of(core: CoreSpace, name: str) -> ContextFeature:
@@ -116,9 +193,10 @@ def plain_values(core: CoreSpace, context) -> Context:
 class ContextSpace:
     """The contexts of one environment, as CARL's ``ContextSpace`` shows them."""
 
-    def __init__(self, context_space: Mapping[str, ContextFeature], core: CoreSpace):
+    def __init__(self, context_space: Mapping[str, ContextFeature], core: CoreSpace | None = None):
+        """``core``: a registered environment's space; None declares one from ``context_space``."""
         self.context_space = dict(context_space)
-        self.core = core
+        self.core = declared_space(self.context_space) if core is None else core
 
     @property
     def context_feature_names(self) -> list[str]:
@@ -168,15 +246,7 @@ class ContextSpace:
         """Contexts drawn uniformly over the bounds of ``context_keys`` (all features if None), the rest
         at their defaults; seeded. One context for ``size=1``, else a list."""
         names = [self.core.resolve(name) for name in (context_keys or self.core.names)]
-        spec = {name: whole_range(self.core, name) for name in names}
+        spec = {name: self.context_space[name].distribution() for name in names}
         batch = distributions.sample(self.core, spec, size, jax.random.key(seed))
         contexts = [plain_values(self.core, batch[i]) for i in range(size)]
         return contexts[0] if size == 1 else contexts
-
-
-def whole_range(core: CoreSpace, name: str) -> distributions.Distribution:
-    """A distribution over every valid value of one feature."""
-    declared = core.features[name]
-    if declared.kind == "categorical":
-        return distributions.Categorical(declared.choices)
-    return distributions.Uniform(declared.lower, declared.upper)

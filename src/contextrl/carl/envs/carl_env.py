@@ -177,7 +177,11 @@ class CARLEnv(gymnasium.Wrapper):
 
     @classmethod
     def get_context_space(cls) -> ContextSpace:
-        return ContextSpace(cls.get_context_features(), cls._core())
+        """The registered environment's space; for a user's own subclass (no ``env_id``), the space its
+        ``get_context_features()`` declares, as in CARL."""
+        return ContextSpace(
+            cls.get_context_features(), cls._core() if hasattr(cls, "env_id") else None
+        )
 
     @classmethod
     def get_default_context(cls) -> Context:
@@ -285,8 +289,14 @@ def carl_names(family: str | None = None) -> list[str]:
     ]
 
 
+def carl_classes(*families: str) -> dict[str, type[CARLEnv]]:
+    """Name → CARL class for some families (every family when none): a CARL module's attributes."""
+    names = [n for family in families for n in carl_names(family)] if families else carl_names()
+    return {name: carl_class(name) for name in names}
+
+
 def family_getattr(*families: str) -> Callable[[str], type[CARLEnv]]:
-    """A module ``__getattr__`` answering the CARL names of some families (a CARL module path)."""
+    """A module ``__getattr__`` for names that are not among its classes: an error listing them."""
 
     def module_getattr(name: str) -> type[CARLEnv]:
         names = [n for family in families for n in carl_names(family)]
