@@ -265,7 +265,7 @@ def run_command(args: argparse.Namespace) -> int:
             spec = prepare(spec_from_args(args, notices))
             for notice in notices:
                 print(notice, file=sys.stderr)
-        connect(args.executor, args.address, on_ray=spec.runs_on_ray, start_local=not args.dry_run)
+        connect(args.executor, args.address, on_ray=spec.runs_on_ray, join=not args.dry_run)
         if args.dry_run:  # checked as the run is up to here; then nothing is created
             _check_new_run(spec, args)
             print(describe_plan(spec, calibrate_time=not args.no_calibration, root=args.root))

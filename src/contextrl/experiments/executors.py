@@ -152,13 +152,11 @@ def run_processes(
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
-def connect(
-    executor: str, address: str | None, on_ray: bool = False, start_local: bool = True
-) -> None:
+def connect(executor: str, address: str | None, on_ray: bool = False, join: bool = True) -> None:
     """Check the executor before a run directory exists: for ``ray`` (or a protocol that runs on Ray
     itself, ``on_ray``), join (or start) the cluster now, so a wrong ``--address`` is a one-line
-    error and leaves nothing half made. ``start_local`` off (a dry run): a cluster at ``address``
-    is still joined, but no local one is started, as there is nothing there to check."""
+    error and leaves nothing half made. ``join`` off (a dry run, planned before a cluster may be
+    up): the executor and ``address`` are checked, no cluster is joined or started."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
     if executor != "ray" and not on_ray:
@@ -167,7 +165,7 @@ def connect(
                 f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
             )
         return
-    if address is None and not start_local:
+    if not join:
         return
     import ray  # optional and slow to import: only a Ray run loads it
 
