@@ -367,7 +367,11 @@ def add_run(subparsers) -> None:
     parser.add_argument(
         "--max-chunks", type=count, help="stop after this many chunks (resume later)"
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress lines, and no bar for the chunk in training",
+    )
     parser.add_argument(
         "--dry-run",
         action="store_true",

@@ -15,7 +15,6 @@ import dataclasses
 import io
 import json
 import os
-import re
 import time
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import jax
 import yaml
 
 from contextrl.agents import ConfigError
+from contextrl.experiments.executors import PROGRESS_LINE
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.spec import CommonSpec, spec_to_dict
 from contextrl.experiments.trials import TRAIN_EVAL_CONTEXTS, run_chunk
@@ -33,7 +33,6 @@ COMPILE_EVENTS = (
     "/jax/core/compile/jaxpr_to_mlir_module_duration",
     "/jax/core/compile/backend_compile_duration",
 )
-RATE = re.compile(r"([\d,]+) steps/s")  # in the agents' progress lines (agents.common.Progress)
 
 
 def _duration(seconds: float) -> str:
@@ -116,7 +115,7 @@ def calibrate(spec: CommonSpec, plan: Plan) -> dict[str, float]:
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
     compile_seconds = min(sum(compiles), seconds)
-    rates = RATE.findall(lines.getvalue())
+    rates = [m.group(3) for m in PROGRESS_LINE.finditer(lines.getvalue()) if m.group(3) != "nan"]
     steps = budget or total  # the steps trained in the timed call (0: an untrained agent)
     if rates:
         rate = float(rates[-1].replace(",", ""))
