@@ -171,9 +171,57 @@ def test_dry_run_calibrates_a_time_estimate(tmp_path):
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "trials: 2" in result.stdout and "chunks: 2" in result.stdout
-    assert "calibration: the first chunk (1 trials)" in result.stdout
+    assert "calibration: the first chunk (1 trials) compiled once" in result.stdout
     assert "estimated time:" in result.stdout
     assert not list(tmp_path.iterdir())
+
+
+def test_dry_run_of_a_trained_agent_times_a_short_budget_and_writes_nothing(tmp_path):
+    """The estimate comes from one call at a small budget (the progress lines give the training
+    rate), not from training the first chunk; no run directory is made."""
+    result = contextrl(
+        "run", "visibility", "--agent", "ppo", "--timesteps", "40000", "--agent-option",
+        "num_steps=16", "--variants", "hidden", "--seeds", "1", "--max-steps", "20", "--episodes",
+        "1", "--set", "num_train_contexts=2", "--set", "num_test_contexts=2", "--dry-run",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "run at 2,000 steps" in result.stdout, result.stdout
+    assert "training at the measured steps/s" in result.stdout
+    assert "estimated time:" in result.stdout and "steps/s  recent" not in result.stdout
+    assert not list(tmp_path.iterdir())
+
+
+def test_dry_run_estimates_from_an_earlier_run_of_the_same_spec(tmp_path):
+    argv = ["run", "visibility", *TINY_RANDOM, "--set", "num_train_contexts=2"]
+    argv += ["--set", "num_test_contexts=2"]
+    assert contextrl(*argv, "--quiet", cwd=tmp_path).returncode == 0
+    (earlier,) = (tmp_path / "runs").iterdir()
+    result = contextrl(*argv, "--seed", "7", "--dry-run", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (
+        f"timings of 1 earlier run(s) of this spec in runs (newest: {earlier.relative_to(tmp_path)}"
+        in result.stdout
+    )
+    assert "nothing was compiled or trained" in result.stdout
+    assert [p.name for p in (tmp_path / "runs").iterdir()] == [earlier.name]
+
+
+@pytest.mark.parametrize(
+    ("options", "fragment"),
+    [
+        (["--executor", "threads"], "executor: unknown executor 'threads'"),
+        (["--address", "localhost:1"], "--address localhost:1: only --executor ray"),
+        (["--out", "a_file/run"], "--out a_file/run: cannot create the run directory"),
+    ],
+)
+def test_dry_run_refuses_what_the_run_refuses(tmp_path, options, fragment):
+    """A dry run checks the options as the run does, so it fails with the run's own message."""
+    write(tmp_path / "a_file", "")
+    argv = ["run", "visibility", *TINY_RANDOM, *options]
+    dry = one_line_error(contextrl(*argv, "--dry-run", cwd=tmp_path), fragment)
+    assert one_line_error(contextrl(*argv, cwd=tmp_path), fragment) == dry
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
 
 
 def test_ctrl_c_exits_at_once_with_a_resume_hint(tmp_path):

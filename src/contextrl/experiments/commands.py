@@ -220,18 +220,36 @@ class _Interrupt:
         self._reader.shutdown(socket.SHUT_RDWR)
 
 
+def _unwritable(args, reason: str, filename) -> SpecError:
+    where = f"--out {args.out}" if args.out else f"--root {args.root}"
+    return SpecError(
+        f"{where}: cannot create the run directory ({reason}: {filename}); choose a writable folder"
+    )
+
+
 def _create_run(spec, args) -> RunDir:
     try:
         return RunDir.create(spec, root=args.root, out=args.out)
     except FileExistsError as error:
         raise SpecError(str(error)) from None
     except OSError as error:
-        where = f"--out {args.out}" if args.out else f"--root {args.root}"
-        reason = error.strerror or str(error)
-        raise SpecError(
-            f"{where}: cannot create the run directory ({reason}: {error.filename}); "
-            "choose a writable folder"
-        ) from None
+        raise _unwritable(args, error.strerror or str(error), error.filename) from None
+
+
+def _check_new_run(spec, args) -> None:
+    """What :func:`_create_run` refuses, found without creating anything (a dry run): a folder that
+    holds a run or is a file, or whose nearest existing parent is not a writable folder."""
+    try:
+        path = RunDir.new_path(spec, root=args.root, out=args.out)
+    except FileExistsError as error:
+        raise SpecError(str(error)) from None
+    parent = path
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise _unwritable(args, "Not a directory", path)
+    if not os.access(parent, os.W_OK):
+        raise _unwritable(args, "Permission denied", parent)
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -247,10 +265,11 @@ def run_command(args: argparse.Namespace) -> int:
             spec = prepare(spec_from_args(args, notices))
             for notice in notices:
                 print(notice, file=sys.stderr)
-            if args.dry_run:
-                print(describe_plan(spec, calibrate_time=not args.no_calibration))
-                return 0
-        connect(args.executor, args.address, on_ray=spec.runs_on_ray)
+        connect(args.executor, args.address, on_ray=spec.runs_on_ray, join=not args.dry_run)
+        if args.dry_run:  # checked as the run is up to here; then nothing is created
+            _check_new_run(spec, args)
+            print(describe_plan(spec, calibrate_time=not args.no_calibration, root=args.root))
+            return 0
         if not args.resume:
             run = _create_run(spec, args)
             if progress:
@@ -348,16 +367,22 @@ def add_run(subparsers) -> None:
     parser.add_argument(
         "--max-chunks", type=count, help="stop after this many chunks (resume later)"
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress lines, and no bar for the chunk in training",
+    )
     parser.add_argument(
         "--dry-run",
         action="store_true",
-        help="print trials, chunks, environment steps and a time estimate; run nothing",
+        help="check the options as the run does, then print trials, chunks, environment steps and "
+        "a time estimate (from earlier runs of this spec under --root, else one short timed "
+        "call); create and train nothing",
     )
     parser.add_argument(
         "--no-calibration",
         action="store_true",
-        help="with --dry-run: skip the short timing run (no time estimate)",
+        help="with --dry-run: no time estimate (nothing compiled or timed)",
     )
     parser.add_argument(
         "--log",

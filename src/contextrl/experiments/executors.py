@@ -11,13 +11,18 @@ that raises is recorded with its error and traceback and the run goes on.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
+import dataclasses
 import functools
 import multiprocessing
 import os
+import re
 import sys
 import time
 import traceback
 from collections.abc import Callable, Iterator
+
+from tqdm import tqdm
 
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir, Summary
@@ -50,6 +55,81 @@ class Progress:
             file=self.stream,
             flush=True,
         )
+
+
+# An agent's progress line (agents.common.Progress): steps done / total, steps/s, recent return.
+PROGRESS_LINE = re.compile(r"step\s+([\d,]+)/([\d,]+)\s+(\S+) steps/s\s+recent return\s+(\S+)")
+
+
+class ChunkBar:
+    """A bar for the chunk this process trains: its phase (compiling, training with steps done /
+    total and the first trial's recent return, evaluating). The chunk runs with the agents'
+    progress lines on (``progress_every`` 1); standing in for stdout, the bar reads them instead of
+    printing them and passes any other output on. Shown on a terminal only, as tqdm's bars are."""
+
+    def __init__(self, description: str, stream=None, disable: bool | None = None):
+        self.stdout = sys.stdout
+        self.bar = tqdm(
+            desc=description,
+            total=None,
+            unit="step",
+            unit_scale=True,
+            file=stream or sys.stderr,
+            disable=disable,
+            leave=False,
+            postfix="compiling",
+        )
+        self._pending = ""
+
+    def write(self, text: str) -> int:
+        self._pending += text
+        *lines, self._pending = self._pending.split("\n")
+        for line in lines:
+            match = PROGRESS_LINE.search(line)
+            if match is None:
+                self.stdout.write(line + "\n")
+                continue
+            done, total = (int(group.replace(",", "")) for group in match.group(1, 2))
+            if self.bar.total is None:  # training has begun: its rate starts now, not at compiling
+                self.bar.reset(total=total)
+            self.bar.update(done - self.bar.n)
+            phase = "evaluating" if done >= total else "training"
+            self.bar.set_postfix_str(f"{phase}, recent return {match.group(4)}")
+        return len(text)
+
+    def flush(self) -> None:
+        self.stdout.flush()
+
+    def close(self) -> None:
+        if self._pending:
+            self.write("\n")
+        self.bar.close()
+
+
+def _chunk_with_bar(chunk_runner: Callable, plan: Plan, chunk: int):
+    """Run ``chunk`` under a :class:`ChunkBar` (on a terminal; elsewhere just run it). Its results
+    and checkpoints are those of the spec as given: the progress lines change no value, and the
+    saved config is the spec's own."""
+    spec = plan.spec
+    trials = plan.chunks[chunk]
+    variant = plan.trials[trials[0]].variant
+    bar = ChunkBar(f"chunk {chunk} ({len(trials)} trials, {variant})")
+    try:
+        if bar.bar.disable:
+            return chunk_runner(plan, trials)
+        watched = plan
+        if spec.agent_entry().trained:
+            options = {**spec.agent_options, "progress_every": 1}
+            watched = dataclasses.replace(
+                plan, spec=dataclasses.replace(spec, agent_options=options)
+            )
+        with contextlib.redirect_stdout(bar):
+            result = chunk_runner(watched, trials)
+    finally:
+        bar.close()
+    if result.checkpoint:
+        result.checkpoint["config"] = spec.agent_config(variant)
+    return result
 
 
 def _pending(run: RunDir, plan: Plan, max_chunks: int | None) -> tuple[list[int], list[int]]:
@@ -108,11 +188,15 @@ def run_local(
     save_params: bool = True,
     chunk_runner: Callable = run_chunk,
 ) -> Summary:
-    """Run the unfinished chunks in this process, in plan order."""
+    """Run the unfinished chunks in this process, in plan order (with ``progress``, each under a
+    :class:`ChunkBar`)."""
 
     def finished(todo: list[int]):
         for chunk in todo:
-            yield chunk, functools.partial(chunk_runner, plan, plan.chunks[chunk])
+            if progress:
+                yield chunk, functools.partial(_chunk_with_bar, chunk_runner, plan, chunk)
+            else:
+                yield chunk, functools.partial(chunk_runner, plan, plan.chunks[chunk])
 
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 
@@ -152,10 +236,11 @@ def run_processes(
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
-def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
+def connect(executor: str, address: str | None, on_ray: bool = False, join: bool = True) -> None:
     """Check the executor before a run directory exists: for ``ray`` (or a protocol that runs on Ray
     itself, ``on_ray``), join (or start) the cluster now, so a wrong ``--address`` is a one-line
-    error and leaves nothing half made."""
+    error and leaves nothing half made. ``join`` off (a dry run, planned before a cluster may be
+    up): the executor and ``address`` are checked, no cluster is joined or started."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
     if executor != "ray" and not on_ray:
@@ -163,6 +248,8 @@ def connect(executor: str, address: str | None, on_ray: bool = False) -> None:
             raise SpecError(
                 f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
             )
+        return
+    if not join:
         return
     import ray  # optional and slow to import: only a Ray run loads it
 

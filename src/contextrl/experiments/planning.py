@@ -1,20 +1,38 @@
 """``contextrl run … --dry-run``: what a spec will cost before it starts.
 
 The plan gives the trials and chunks; the agent configs give the training steps. The time estimate
-comes from a short calibration: the first chunk trained at two small budgets, each compiled once and
-then timed, gives a per-step cost and a fixed (evaluation) cost per chunk, and the compile time, which
-is paid once per group of chunks that share a compiled function.
+comes from earlier runs of the same spec under the run root when there are some (their recorded seconds
+per chunk: no computation at all), else from one short timed call: the first chunk compiled and trained
+at a small budget with the agents' progress lines on. JAX's compile events give the compile time (paid
+once per group of chunks that share a compiled function), the progress lines the training rate, and the
+rest of the call is the fixed (evaluation) cost of a chunk.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
+import json
+import os
 import time
+from pathlib import Path
+
+import jax
+import yaml
 
 from contextrl.agents import ConfigError
+from contextrl.experiments.executors import PROGRESS_LINE
 from contextrl.experiments.protocols import Plan, expand
-from contextrl.experiments.spec import CommonSpec
+from contextrl.experiments.spec import CommonSpec, spec_to_dict
 from contextrl.experiments.trials import TRAIN_EVAL_CONTEXTS, run_chunk
+
+# The phases of a JAX compile as jax.monitoring reports them (tracing, lowering, XLA's compile).
+COMPILE_EVENTS = (
+    "/jax/core/compile/jaxpr_trace_duration",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration",
+    "/jax/core/compile/backend_compile_duration",
+)
 
 
 def _duration(seconds: float) -> str:
@@ -43,48 +61,111 @@ def _valid_budget(spec: CommonSpec, budget: int, limit: int) -> int | None:
     return None
 
 
-def _timed(plan: Plan, chunk: list[int]) -> tuple[float, float]:
-    """(seconds of the first call: compile and run, seconds of the second: run only)."""
-    start = time.perf_counter()
-    run_chunk(plan, chunk)
-    first = time.perf_counter() - start
-    start = time.perf_counter()
-    run_chunk(plan, chunk)
-    return first, time.perf_counter() - start
+def _identity(spec_data: dict) -> dict:
+    """What makes two runs cost the same: the spec without its name and base seed."""
+    return {k: v for k, v in spec_data.items() if k not in ("name", "seed")}
+
+
+def earlier_runs(spec: CommonSpec, root: str | os.PathLike) -> list[tuple[Path, dict[str, float]]]:
+    """Runs under ``root`` of this spec (name and seed aside) with recorded chunk timings, newest
+    first: (run folder, seconds per chunk)."""
+    mine = _identity(yaml.safe_load(yaml.safe_dump(spec_to_dict(spec), sort_keys=False)))
+    found = []
+    for file in Path(root).glob("*/spec.yaml"):
+        timings = file.parent / "timings.json"
+        if not timings.exists():
+            continue
+        with contextlib.suppress(OSError, yaml.YAMLError, json.JSONDecodeError):
+            if _identity(yaml.safe_load(file.read_text(encoding="utf-8")) or {}) == mine:
+                found.append((file.stat().st_mtime, file.parent, json.loads(timings.read_text())))
+    return [(path, seconds) for _, path, seconds in sorted(found, reverse=True) if seconds]
+
+
+def _compile_seconds(record: list[float]):
+    """A listener adding JAX's compile durations to ``record``."""
+
+    def listen(event: str, duration: float, **kwargs) -> None:
+        if event in COMPILE_EVENTS:
+            record.append(duration)
+
+    return listen
 
 
 def calibrate(spec: CommonSpec, plan: Plan) -> dict[str, float]:
-    """Seconds per chunk at full budget (``chunk``, for the first chunk's size), compile seconds per
-    compiled group (``compile``) and how long the calibration took (``spent``)."""
+    """One timed call of the first chunk at a small budget: seconds per chunk at full budget
+    (``chunk``, for the first chunk's size ``size``), compile seconds per compiled group
+    (``compile``), how the training time was found (``rate``: measured, or an upper bound) and how
+    long the calibration took (``spent``)."""
     started = time.perf_counter()
     chunk = plan.chunks[0]
     total = _timesteps(spec, plan.trials[chunk[0]].variant)
-    low = _valid_budget(spec, max(total // 20, 1), total) if total else None
-    if not total or low is None:
-        first, run = _timed(plan, chunk)
-        per_step, fixed, compile_seconds = 0.0, run, first - run
-        if total:  # only the full budget is valid: it was the calibration itself
-            per_step, fixed = run / total, 0.0
-    else:
-        points = []
-        for budget in sorted({low, min(2 * low, total)}):
-            options = {**spec.agent_options, "total_timesteps": budget}
-            short = dataclasses.replace(spec, agent_options=options)
-            points.append((budget, *_timed(dataclasses.replace(plan, spec=short), chunk)))
-        (b1, first, r1), (b2, _, r2) = points[0], points[-1]
-        per_step = max((r2 - r1) / (b2 - b1), 0.0) if b2 > b1 else r1 / b1
-        fixed = max(r1 - per_step * b1, 0.0)
-        compile_seconds = max(first - r1, 0.0)
+    budget = _valid_budget(spec, max(total // 20, 1), total) if total else None
+    if budget is not None:  # a short budget, with a progress line per metrics row
+        options = {**spec.agent_options, "total_timesteps": budget, "progress_every": 1}
+        plan = dataclasses.replace(plan, spec=dataclasses.replace(spec, agent_options=options))
+    compiles: list[float] = []
+    listener = _compile_seconds(compiles)
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    lines = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(lines):
+            start = time.perf_counter()
+            run_chunk(plan, chunk)
+            seconds = time.perf_counter() - start
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    compile_seconds = min(sum(compiles), seconds)
+    rates = [m.group(3) for m in PROGRESS_LINE.finditer(lines.getvalue()) if m.group(3) != "nan"]
+    steps = budget or total  # the steps trained in the timed call (0: an untrained agent)
+    if rates:
+        rate = float(rates[-1].replace(",", ""))
+        train = steps / rate
+        fixed = max(seconds - compile_seconds - train, 0.0)
+        chunk_seconds = fixed + total / rate
+    else:  # no rate measured: all of the call's run time counted as training (an upper bound)
+        chunk_seconds = (seconds - compile_seconds) * (total / steps if steps else 1)
     return {
-        "chunk": fixed + per_step * total,
+        "chunk": chunk_seconds,
         "compile": compile_seconds,
+        "rate": bool(rates) or not total,
+        "budget": steps,
         "spent": time.perf_counter() - started,
         "size": len(chunk),
     }
 
 
-def describe_plan(spec: CommonSpec, *, calibrate_time: bool = True) -> str:
-    """The dry-run text: trials, chunks, environment steps and (with calibration) a time estimate."""
+def _estimate(spec: CommonSpec, plan: Plan, root: str | os.PathLike) -> tuple[float, str]:
+    """Seconds the whole plan should take with the local executor, and how that was found."""
+    runs = earlier_runs(spec, root)
+    if runs:
+        path, timings = runs[0]
+        seconds = sum(timings.values()) / len(timings) * len(plan.chunks)
+        return seconds, (
+            f"  estimate from the timings of {len(runs)} earlier run(s) of this spec in {root} "
+            f"(newest: {path}, {len(timings)} chunk(s) in {_duration(sum(timings.values()))}); "
+            "nothing was compiled or trained"
+        )
+    timing = calibrate(spec, plan)
+    groups = len({plan.trials[c[0]].group(plan) for c in plan.chunks})
+    chunk_seconds = sum(timing["chunk"] * len(c) / timing["size"] for c in plan.chunks)
+    how = (
+        "training at the measured steps/s"
+        if timing["rate"]
+        else "no training rate measured, so all run time counted as training: an upper bound"
+    )
+    return chunk_seconds + groups * timing["compile"], (
+        f"  calibration: the first chunk ({timing['size']} trials) compiled once and run at "
+        f"{timing['budget']:,} steps took {_duration(timing['spent'])}; compile "
+        f"{timing['compile']:.1f} s per compiled group ({groups}), {how}, "
+        "plus the measured evaluation time per chunk"
+    )
+
+
+def describe_plan(
+    spec: CommonSpec, *, calibrate_time: bool = True, root: str | os.PathLike = "runs"
+) -> str:
+    """The dry-run text: trials, chunks, environment steps and (unless ``calibrate_time`` is off) a
+    time estimate, from earlier runs of this spec under ``root`` or from a short timed call."""
     plan = expand(spec)
     lines = [f"dry run of {spec.protocol} ({spec.name}); nothing is written"]
     if not plan.trials:
@@ -116,15 +197,8 @@ def describe_plan(spec: CommonSpec, *, calibrate_time: bool = True) -> str:
     )
     if not calibrate_time:
         return "\n".join(lines)
-    timing = calibrate(spec, plan)
-    groups = len({plan.trials[c[0]].group(plan) for c in plan.chunks})
-    chunk_seconds = sum(timing["chunk"] * len(c) / timing["size"] for c in plan.chunks)
-    estimate = chunk_seconds + groups * timing["compile"]
-    lines.append(
-        f"  calibration: the first chunk ({timing['size']} trials) at short budgets took "
-        f"{_duration(timing['spent'])}; compile {timing['compile']:.1f} s per compiled group "
-        f"({groups})"
-    )
+    estimate, how = _estimate(spec, plan, root)
+    lines.append(how)
     lines.append(
         f"  estimated time: {_duration(estimate)} with the local executor on this machine "
         "(a rough extrapolation; Ray spreads chunks over workers)"

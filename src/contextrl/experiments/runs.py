@@ -74,9 +74,12 @@ class RunDir:
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
 
-    @classmethod
-    def create(cls, spec: CommonSpec, root: str | os.PathLike = "runs", out: str | None = None):
-        """A new run folder (``out``, or ``root/<name>-<UTC time>``) holding the spec and manifest."""
+    @staticmethod
+    def new_path(
+        spec: CommonSpec, root: str | os.PathLike = "runs", out: str | None = None
+    ) -> Path:
+        """Where :meth:`create` puts a new run (``out``, or ``root/<name>-<UTC time>``), refusing an
+        ``out`` that holds a run or is a file; nothing is written (a dry run checks the same)."""
         if out is not None:
             path = Path(out)
             if (path / "spec.yaml").exists():
@@ -95,6 +98,12 @@ class RunDir:
             while path.exists():
                 suffix += 1
                 path = Path(root) / f"{spec.name}-{stamp}-{suffix}"
+        return path
+
+    @classmethod
+    def create(cls, spec: CommonSpec, root: str | os.PathLike = "runs", out: str | None = None):
+        """A new run folder (``out``, or ``root/<name>-<UTC time>``) holding the spec and manifest."""
+        path = cls.new_path(spec, root, out)
         run = cls(path)
         path.mkdir(parents=True, exist_ok=True)
         write_text(path / "spec.yaml", yaml.safe_dump(spec_to_dict(spec), sort_keys=False))
