@@ -5,7 +5,7 @@ programs, :func:`contextrl.core.choose_context` for host simulators) and answer 
 a run, ``restart`` the next episode, ``advance`` one action), so the adapter above owns seeding, options
 and gymnasium's API once. A JAX environment that offers scalar physics (``contextrl.core.scalar``) is one
 more host simulator (:class:`ScalarPhysics`), not a third backend. Every face, single or vector, checks
-actions with :class:`ActionCheck`.
+actions with :func:`action_check`.
 """
 
 from __future__ import annotations
@@ -146,71 +146,83 @@ def observation_spaces(env: Env) -> tuple[gymnasium.spaces.Box, gymnasium.spaces
     return flat, gymnasium.spaces.Box(flat.low[:split], flat.high[:split], dtype=np.float32)
 
 
-class ActionCheck:
-    """The one action rule of every gymnasium face (single and vector, compiled and host).
+def action_check(space: gymnasium.spaces.Space, copies: int | None = None) -> Callable[[Any], Any]:
+    """The one action rule of every gymnasium face (single and vector, compiled and host), as a function
+    from a user's action to what the backend takes (an int, an int32 or float array).
 
     A discrete action is an integer in the space's range. A Box action is numbers of the space's shape,
-    finite, and clipped to the bounds (as gymnasium's MuJoCo and Box2D environments and the JAX core's
+    finite, clipped to the bounds (as gymnasium's MuJoCo and Box2D environments and the JAX core's
     transitions treat them). Other host spaces take what their ``contains`` accepts. Anything else is
     refused with a ValueError saying what an action must be. ``copies``: the vector env's leading axis.
     """
+    rule = ActionRule(space, copies)
+    if isinstance(space, gymnasium.spaces.Discrete):
+        return rule.integer if copies is None else rule.integers
+    return rule.box if isinstance(space, gymnasium.spaces.Box) else rule.contained
 
-    def __init__(self, space: gymnasium.spaces.Space, copies: int | None = None):
+
+class ActionRule:
+    """The checks of :func:`action_check`, one method per kind of space (bound once: a single step
+    pays one call)."""
+
+    def __init__(self, space: gymnasium.spaces.Space, copies: int | None):
         self.space = space
         self.batch = () if copies is None else (copies,)
         self.noun = "action" if copies is None else "actions"
-        self.discrete = isinstance(space, gymnasium.spaces.Discrete)
-        self.box = isinstance(space, gymnasium.spaces.Box)
-        if self.discrete:
+        if isinstance(space, gymnasium.spaces.Discrete):
             self.low, self.high = int(space.start), int(space.start + space.n)
             count = "an integer" if copies is None else f"{copies} integers"
             self.expected = f"{count} in [{self.low}, {self.high})"
-        elif self.box:
+        elif isinstance(space, gymnasium.spaces.Box):
             self.low, self.high = space.low, space.high
-            self._bounds = (space.low.ravel().tolist(), space.high.ravel().tolist())
+            self.bounds = (space.low.ravel().tolist(), space.high.ravel().tolist())
             self.shape = (*self.batch, *space.shape)
-            what = "a finite float array" if copies is None else "finite floats"
-            self.expected = f"{what} of shape {self.shape}"
+            numbers = "a finite float array" if copies is None else "finite floats"
+            self.expected = f"{numbers} of shape {self.shape}"
         else:
             self.expected = f"in the action space {space}"
 
-    def __call__(self, action: Any) -> Any:
-        """``action`` as the backend takes it (an int, an int32 or float array, clipped), else ValueError."""
-        if self.discrete and not self.batch:  # the common single step: no NumPy call
-            index = None if isinstance(action, (bool, np.bool_)) else _index(action)
-            if index is not None and self.low <= index < self.high:
+    def refusal(self, action: Any) -> ValueError:
+        return ValueError(f"{self.noun} must be {self.expected}, got {action!r}")
+
+    def integer(self, action: Any) -> int:
+        """One discrete action, as a Python int: no NumPy call."""
+        if not isinstance(action, (bool, np.bool_)):
+            try:
+                index = operator.index(action)
+            except TypeError:
+                raise self.refusal(action) from None
+            if self.low <= index < self.high:
                 return index
-        elif self.discrete or self.box:
-            values = _numbers(action, "iu" if self.discrete else "iuf")
-            if self.discrete and values is not None and values.shape == self.batch:
-                if values.size == 0 or (values.min() >= self.low and values.max() < self.high):
-                    return values.astype(np.int32, copy=False)
-            elif values is not None and values.shape == self.shape:
-                values = self._clipped(values.astype(self.space.dtype, copy=False))
-                if values is not None:
-                    return values
-        elif self.space.contains(np.asarray(action, self.space.dtype)):
-            return action
-        raise ValueError(f"{self.noun} must be {self.expected}, got {action!r}")
+        raise self.refusal(action)
 
+    def integers(self, actions: Any) -> np.ndarray:
+        values = _numbers(actions, "iu")
+        if values is None or values.shape != self.batch:
+            raise self.refusal(actions)
+        if values.min() < self.low or values.max() >= self.high:
+            raise self.refusal(actions)
+        return values.astype(np.int32, copy=False)
 
-    def _clipped(self, values: np.ndarray) -> np.ndarray | None:
-        """Finite ``values`` clipped to the bounds, else None. One action inside the bounds (the
-        common case) is checked on Python floats: NumPy's reductions cost microseconds on a few."""
-        if not self.batch:
-            bounds = zip(values.ravel().tolist(), *self._bounds, strict=True)
-            if all(low <= value <= high for value, low, high in bounds):  # False for NaN
+    def box(self, action: Any) -> np.ndarray:
+        values = _numbers(action, "iuf")
+        if values is None or values.shape != self.shape:
+            raise self.refusal(action)
+        values = values.astype(self.space.dtype, copy=False)
+        if (
+            not self.batch
+        ):  # one action inside the bounds, the common case, checked on Python floats
+            inside = zip(values.ravel().tolist(), *self.bounds, strict=True)
+            if all(low <= value <= high for value, low, high in inside):  # False for NaN
                 return values
-        if np.isfinite(values).all():
-            return np.minimum(np.maximum(values, self.low), self.high)
-        return None
+        if not np.isfinite(values).all():
+            raise self.refusal(action)
+        return np.minimum(np.maximum(values, self.low), self.high)
 
-
-def _index(action: Any) -> int | None:
-    try:
-        return operator.index(action)
-    except TypeError:
-        return None
+    def contained(self, action: Any) -> Any:
+        if not self.space.contains(np.asarray(action, self.space.dtype)):
+            raise self.refusal(action)
+        return action
 
 
 def _numbers(action: Any, kinds: str) -> np.ndarray | None:
@@ -302,11 +314,9 @@ class JaxPrograms:
 
 class JaxBackend:
     """A JAX ``Env`` stepped through :class:`JaxPrograms`; the host keeps the packed state. The time limit
-    and the context observation are the core env's; the action rule is :class:`ActionCheck`'s."""
+    and the context observation are the core env's; the action rule is :func:`action_check`'s."""
 
     def __init__(self, env: Env, schedule: ContextSchedule):
-        self.env = env
-        self.schedule = schedule
         self.space = env.context_space
         key = schedule.selection_key
         self.programs = shared_program(
@@ -315,7 +325,7 @@ class JaxBackend:
         self.packer = self.programs.packer
         self.table = on_cpu(context_table(schedule))
         self.action_space = env.action_space.to_gymnasium()
-        self.check = ActionCheck(self.action_space)
+        self.check = action_check(self.action_space)
         self.flat_space, self.base_space = observation_spaces(env)
         self.obs_size = int(np.prod(self.flat_space.shape))
         self.carry: np.ndarray | None = None
@@ -430,7 +440,6 @@ class ScalarPhysics:
 
     def __init__(self, env: Env):
         self.env = env
-        self.name = env.name
         self.context_space = env.context_space
         self.action_space = env.action_space.to_gymnasium()
         self.base_observation_space = env.base_observation_space.to_gymnasium()
@@ -505,7 +514,7 @@ class HostBackend:
         self.obs_context = obs_context
         self.max_steps = max_steps
         self.action_space = simulator.action_space
-        self.check = ActionCheck(self.action_space)
+        self.check = action_check(self.action_space)
         self.base_space = base = simulator.base_observation_space
         if obs_context.hidden:  # the original observation as it is (pixels keep shape and dtype)
             self.flat_space = base
@@ -516,16 +525,14 @@ class HostBackend:
                 np.concatenate([np.ravel(base.high), high]).astype(np.float32),
                 dtype=np.float32,
             )
-        self.obs_size = int(np.prod(self.flat_space.shape))
         self.table = on_cpu(context_table(schedule))
         self._keyed = isinstance(simulator, ScalarPhysics)
         self._start_program = cpu_jit(self._start_fn)
         self._extra = cpu_jit(self._extra_fn)
-        features = len(self.space)
+        self._features = len(self.space)
         self._extra_size = 0 if obs_context.hidden else len(obs_context.features)
         # The start program's words: run key data, episode, 1 where a context is given, its id, values.
-        self._words = np.zeros(5 + features, np.uint32)
-        self._index_at = features  # then start key data, context observation, simulator start
+        self._words = np.zeros(5 + self._features, np.uint32)
         self._members: dict[int, Any] = {}  # the context objects of the set's members, built once
         self.time = 0
         self.context: Any = None
@@ -579,7 +586,9 @@ class HostBackend:
     def _observation(self, base_obs: Any, extra: np.ndarray) -> np.ndarray:
         if self.obs_context.hidden:
             return np.asarray(base_obs, self.flat_space.dtype)
-        if isinstance(base_obs, list):  # scalar physics' Python floats: one conversion, no concatenate
+        if isinstance(
+            base_obs, list
+        ):  # scalar physics' Python floats: one conversion, no concatenate
             return np.array(base_obs + extra.tolist(), np.float32)
         return np.concatenate((np.ravel(base_obs), extra), dtype=np.float32)
 
@@ -591,20 +600,19 @@ class HostBackend:
             words[4] = np.int32(override[1]).view(np.uint32)
             words[5:] = np.asarray(override[0], np.float32).view(np.uint32)
         out = np.asarray(self._start_program(words, self.table))
-        at = self._index_at
+        at = self._features  # the context values, its id, start key data, context observation…
         vector = out[:at].view(np.float32)
         index = int(out[at].view(np.int32))
         self._start_key = out[at + 1 : at + 3]
-        extra = out[at + 3 : at + 3 + self._extra_size].view(np.float32)
+        end = at + 3 + self._extra_size
+        extra = out[at + 3 : end].view(np.float32)
         self._vector = vector
         self._fixed_extra = extra if self.obs_context.noise == 0 else None
         self.context = self._context(vector, index)
         self.time = 0
-        if self._keyed:
-            started = out[at + 3 + self._extra_size :].view(np.float32)
-            base_obs = self.simulator.reset_physics(self.context, started)
-        else:
-            base_obs = self.simulator.reset_physics(self.context, self._rng)
+        # Where the start state comes from: scalar physics' compiled start, a HostEnv's generator.
+        source = out[end:].view(np.float32) if self._keyed else self._rng
+        base_obs = self.simulator.reset_physics(self.context, source)
         return self._observation(base_obs, extra), vector, index
 
     def begin(self, key_bits, copy, num_copies, override=None, rng=None):

@@ -114,10 +114,8 @@ def observation_space(
     return gymnasium.spaces.Dict({"obs": base, "context": context})
 
 
-def split_observation(flat: np.ndarray, space: gymnasium.spaces.Space, as_dict: bool) -> Any:
-    """``flat`` (one observation, or a row per copy) in the layout of :func:`observation_space`."""
-    if not as_dict:
-        return flat
+def split_observation(flat: np.ndarray, space: gymnasium.spaces.Dict) -> dict[str, np.ndarray]:
+    """``flat`` (one observation, or a row per copy) as the Dict of :func:`observation_space`."""
     base = space["obs"]
     split = int(np.prod(base.shape))
     obs = flat[..., :split].reshape(flat.shape[:-1] + base.shape)
@@ -260,7 +258,9 @@ class ContextualGymEnv(gymnasium.Env):
         return self._observation(obs), self._fresh_info()
 
     def _observation(self, flat: np.ndarray) -> Any:
-        return split_observation(flat, self.observation_space, self.obs_context_as_dict)
+        if not self.obs_context_as_dict:
+            return flat
+        return split_observation(flat, self.observation_space)
 
     def _values(self, index: int, context_vector: np.ndarray) -> dict[str, Any]:
         """Feature values for ``info``; a set member's are converted once and remembered."""

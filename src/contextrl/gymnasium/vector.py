@@ -29,7 +29,7 @@ from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
 from contextrl.gymnasium.backends import (
-    ActionCheck,
+    action_check,
     context_table,
     contextual_env,
     env_step_info,
@@ -167,7 +167,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self.context_space = self.env.context_space
         self.metadata = {**self.metadata, "render_fps": render_fps(self.env)}
         self.single_action_space = self.env.action_space.to_gymnasium()
-        self.check = ActionCheck(self.single_action_space, self.num_envs)
+        self.check = action_check(self.single_action_space, self.num_envs)
         flat, base = observation_spaces(self.env)
         self.single_observation_space = observation_space(flat, base, obs_context_as_dict)
         self.obs_size = flat.shape[0]
@@ -215,7 +215,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         return ids
 
     def _observations(self, flat: np.ndarray):
-        return split_observation(flat, self.single_observation_space, self.obs_context_as_dict)
+        if not self.obs_context_as_dict:
+            return flat
+        return split_observation(flat, self.single_observation_space)
 
     def _context_info(self) -> dict[str, Any]:
         """Feature name → one value per copy (columns of the kept values: work per feature)."""
