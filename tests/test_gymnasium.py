@@ -7,7 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import contextrl as crl
 from contextrl.context import RESAMPLED_ID
-from contextrl.gymnasium import ContextualGymEnv, gym_id, register_envs
+from contextrl.gymnasium import ContextualGymEnv, ContextualVectorEnv, gym_id, register_envs
 
 LENGTHS = [{"length": 0.25}, {"length": 1.0}]
 OBS_MODES = [
@@ -186,6 +186,45 @@ def test_bad_actions_are_refused():
     pendulum.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
         pendulum.step(np.array([np.nan], np.float32))
+
+
+# One face of each kind: a JAX env on its scalar host path, in compiled programs (a noisy context
+# observation draws at every step), in the vector env, and a host simulator (Box2D).
+ACTION_FACES = {
+    "scalar physics": lambda: ContextualGymEnv("Pendulum"),
+    "compiled": lambda: ContextualGymEnv(
+        "Pendulum", obs_context_features="all", obs_context_noise=0.1
+    ),
+    "vector": lambda: ContextualVectorEnv("Pendulum", num_envs=2),
+    "host": lambda: ContextualGymEnv("LunarLanderContinuous"),
+}
+
+
+@pytest.mark.parametrize("face", ACTION_FACES)
+def test_every_face_clips_finite_box_actions_and_refuses_the_rest(face):
+    env = ACTION_FACES[face]()
+    vector = isinstance(env, gymnasium.vector.VectorEnv)
+    space = env.single_action_space if vector else env.action_space
+    shape = (env.num_envs, *space.shape) if vector else space.shape
+
+    def trajectory(action: np.ndarray) -> np.ndarray:
+        env.reset(seed=0)
+        return np.stack([env.step(np.broadcast_to(action, shape))[0] for _ in range(5)])
+
+    upper = np.resize([True, False], space.shape)  # one value above its bounds, the next below
+    beyond = trajectory(np.where(upper, 3 * space.high, 3 * space.low))
+    np.testing.assert_array_equal(beyond, trajectory(np.where(upper, space.high, space.low)))
+    for bad in (
+        np.full(shape, np.nan),
+        np.full(shape, np.inf),
+        np.zeros((7,)),
+        np.full(shape, "a"),
+    ):
+        with pytest.raises(
+            ValueError, match=r"must be (a finite float array|finite floats) of shape"
+        ):
+            env.step(bad)
+    env.close()
 
 
 def test_every_id_and_alias_is_registered_and_later_ids_are_picked_up():

@@ -15,7 +15,7 @@ import contextrl as crl
 from contextrl.core import scalar
 from contextrl.core.spaces import Discrete
 from contextrl.gymnasium import ContextualGymEnv
-from contextrl.gymnasium.backends import JaxBackend, ScalarBackend
+from contextrl.gymnasium.backends import HostBackend, JaxBackend, ScalarPhysics
 
 # Acrobot draws torque noise from the JAX key at every step, so it steps in JAX only.
 ENVS = ("CartPole", "Pendulum", "MountainCar", "MountainCarContinuous")
@@ -98,7 +98,8 @@ def test_steps_that_draw_random_numbers_stay_compiled():
     noisy = ContextualGymEnv("CartPole", obs_context_features="all", obs_context_noise=0.1)
     assert type(noisy.backend) is JaxBackend
     clean = ContextualGymEnv("CartPole", obs_context_features="all")
-    assert isinstance(clean.backend, ScalarBackend)
+    assert type(clean.backend) is HostBackend
+    assert type(clean.backend.simulator) is ScalarPhysics
 
 
 def test_same_seed_same_trajectory_with_torque_noise():

@@ -64,8 +64,30 @@ def tree_where(condition, on_true, on_false):
     return jax.tree_util.tree_map(lambda a, b: jnp.where(condition, a, b), on_true, on_false)
 
 
+class ContextHelpers:
+    """What JAX and host environments offer alike about their context (one copy, mixed into both)."""
+
+    context_type: ClassVar[type]
+
+    @property
+    def name(self) -> str:
+        return type(self).__name__
+
+    @property
+    def context_space(self):
+        return self.context_type.space
+
+    def default_context(self):
+        """The context that reproduces the original environment."""
+        return self.context_space.default()
+
+    def context(self, **values):
+        """A validated context: the given features (names or paper aliases), defaults for the rest."""
+        return self.context_space.make(**values)
+
+
 @dataclasses.dataclass(frozen=True)
-class Env:
+class Env(ContextHelpers):
     """Base of every JAX environment: static configuration only, pure functions of (key, state, context).
 
     ``max_steps`` is the time limit (None: the original environment's); ``obs_context`` says which
@@ -77,7 +99,6 @@ class Env:
     obs_context: ContextObservation = ContextObservation()
     run_time_checks: bool = False
 
-    context_type: ClassVar[type]
     default_max_steps: ClassVar[int]
     # True when ``transition`` draws random numbers; otherwise the step key goes to the reset unsplit.
     stochastic_transition: ClassVar[bool] = False
@@ -124,23 +145,7 @@ class Env:
         """The original observation's space, wide enough for every context inside the bounds."""
         raise NotImplementedError
 
-    # ---- provided ------------------------------------------------------------------------------------
-    @property
-    def name(self) -> str:
-        return type(self).__name__
-
-    @property
-    def context_space(self):
-        return self.context_type.space
-
-    def default_context(self):
-        """The context that reproduces the original environment."""
-        return self.context_space.default()
-
-    def context(self, **values):
-        """A validated context: the given features (names or paper aliases), defaults for the rest."""
-        return self.context_space.make(**values)
-
+    # ---- provided (the context helpers come from ContextHelpers) -------------------------------------
     @property
     def observation_space(self) -> Box:
         base = self.base_observation_space

@@ -8,15 +8,15 @@ writes how a context is applied and how the simulator steps; it is vectorised ac
 
 from __future__ import annotations
 
-import math
 from typing import Any, ClassVar
 
 import numpy as np
 
 from contextrl.context.features import ContextError
+from contextrl.core.env import ContextHelpers
 
 
-class HostEnv:
+class HostEnv(ContextHelpers):
     """Base of every CPU-stepped environment. Stateful (it wraps a simulator), but seeded explicitly.
 
     The adapter calls ``reset_physics(context, rng)`` at every reset with the episode's (validated,
@@ -25,49 +25,20 @@ class HostEnv:
     adapter's business, not the environment's.
     """
 
-    context_type: ClassVar[type]
     default_max_steps: ClassVar[int]
 
-    @property
-    def name(self) -> str:
-        return type(self).__name__
-
-    @property
-    def context_space(self):
-        return self.context_type.space
-
-    def default_context(self):
-        return self.context_space.default()
-
-    def context(self, **values):
-        return self.context_space.make(**values)
-
     def context_values(self, context: Any) -> dict[str, float]:
-        """One unbatched context as plain floats, checked (type, one value each, finite, bounds).
-
-        The checks of ``context_space.check`` written for one context, cheap enough for every reset.
-        """
-        if not isinstance(context, self.context_type):
-            raise ContextError(
-                f"{self.name}: expected a {self.context_type.__name__}, got {type(context).__name__}"
-            )
+        """One unbatched context as plain floats, checked by ``context_space.check`` (type, finite,
+        bounds, coherence) and refused when a feature holds more than one value."""
+        self.context_space.check(context)
         values = {}
-        for name, feature in self.context_space.features.items():
+        for name in self.context_space.names:
             value = np.asarray(getattr(context, name))
             if value.ndim != 0:
                 raise ContextError(
                     f"{self.name}: {name} must be one value per episode, got shape {value.shape}"
                 )
-            value = float(value)
-            if not math.isfinite(value):
-                raise ContextError(f"{name}: value {value!r} is not finite (NaN or inf)")
-            lower, upper = float(np.float32(feature.lower)), float(np.float32(feature.upper))
-            if not lower <= value <= upper:  # compared as float32, the precision a context holds
-                raise ContextError(
-                    f"{name}: value {value:g} is outside its bounds "
-                    f"[{feature.lower:g}, {feature.upper:g}]"
-                )
-            values[name] = value
+            values[name] = float(value)
         return values
 
     # ---- written by each host environment ------------------------------------------------------------

@@ -9,7 +9,8 @@ equations use is here, with ``jax.numpy``'s meaning: ``where`` picks (both sides
 An environment that offers the host path defines ``host_transition(state, action, context) ->
 (next_state, reward, terminated)`` and ``host_observe(state, context) -> sequence of floats`` on plain
 floats (``context`` has one float attribute per feature). Only deterministic steps run on the host: a
-step that draws random numbers draws them from the JAX key, in the compiled path.
+step that draws random numbers draws them from the JAX key, in the compiled path. The gymnasium adapter
+runs these as one more host simulator (``contextrl.gymnasium.backends.ScalarPhysics``).
 """
 
 from __future__ import annotations

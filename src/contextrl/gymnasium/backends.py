@@ -1,10 +1,11 @@
-"""How the single gymnasium environment steps: a compiled JAX environment or a host simulator.
+"""How the single gymnasium environment steps: two backends, compiled JAX programs or a host simulator.
 
-Every backend starts episodes with the core's selection code (:class:`contextrl.core.ContextualEnv`
-for JAX environments, :func:`contextrl.core.choose_context` for host simulators) and answers the same
-calls (``begin`` a run, ``restart`` the next episode, ``advance`` one action), so the adapter above
-owns seeding, options and gymnasium's API once. A JAX environment that also offers scalar physics
-(``contextrl.core.scalar``) steps on the host between compiled starts.
+Both start episodes with the core's selection code (:class:`contextrl.core.ContextualEnv` in compiled
+programs, :func:`contextrl.core.choose_context` for host simulators) and answer the same calls (``begin``
+a run, ``restart`` the next episode, ``advance`` one action), so the adapter above owns seeding, options
+and gymnasium's API once. A JAX environment that offers scalar physics (``contextrl.core.scalar``) is one
+more host simulator (:class:`ScalarPhysics`), not a third backend. Every face, single or vector, checks
+actions with :func:`action_check`.
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import ContextSchedule
 from contextrl.core.contextual import ContextualEnv, choose_context
 from contextrl.core.env import Env
-from contextrl.core.host import HostEnv
 from contextrl.core.spaces import Discrete
 from contextrl.gymnasium.packing import Packer
 
@@ -128,6 +128,112 @@ def shared_program(key: Hashable | None, build: Callable[[], Any]) -> Any:
     return _PROGRAM_CACHE[key]
 
 
+def program_layout(env: Env, schedule: ContextSchedule) -> tuple[Packer, dict]:
+    """The packer of the contextual state and the environment's step facts of a start (shapes only):
+    the layout every compiled program of ``env`` under ``schedule``, single or vector, reads and writes."""
+    table = context_table(schedule)
+    state, started = jax.eval_shape(
+        lambda key: contextual_env(env, schedule, table).reset(key), jax.random.key(0)
+    )
+    return Packer(state), env_step_info(started)
+
+
+def observation_spaces(env: Env) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Box]:
+    """A JAX env's gymnasium observation space (the original observation, then the context) and the
+    space of its original part (flat)."""
+    flat = env.observation_space.to_gymnasium()
+    split = int(np.prod(env.base_observation_space.shape))
+    return flat, gymnasium.spaces.Box(flat.low[:split], flat.high[:split], dtype=np.float32)
+
+
+def action_check(space: gymnasium.spaces.Space, copies: int | None = None) -> Callable[[Any], Any]:
+    """The one action rule of every gymnasium face (single and vector, compiled and host), as a function
+    from a user's action to what the backend takes (an int, an int32 or float array).
+
+    A discrete action is an integer in the space's range. A Box action is numbers of the space's shape,
+    finite, clipped to the bounds (as gymnasium's MuJoCo and Box2D environments and the JAX core's
+    transitions treat them). Other host spaces take what their ``contains`` accepts. Anything else is
+    refused with a ValueError saying what an action must be. ``copies``: the vector env's leading axis.
+    """
+    rule = ActionRule(space, copies)
+    if isinstance(space, gymnasium.spaces.Discrete):
+        return rule.integer if copies is None else rule.integers
+    return rule.box if isinstance(space, gymnasium.spaces.Box) else rule.contained
+
+
+class ActionRule:
+    """The checks of :func:`action_check`, one method per kind of space (bound once: a single step
+    pays one call)."""
+
+    def __init__(self, space: gymnasium.spaces.Space, copies: int | None):
+        self.space = space
+        self.batch = () if copies is None else (copies,)
+        self.noun = "action" if copies is None else "actions"
+        if isinstance(space, gymnasium.spaces.Discrete):
+            self.low, self.high = int(space.start), int(space.start + space.n)
+            count = "an integer" if copies is None else f"{copies} integers"
+            self.expected = f"{count} in [{self.low}, {self.high})"
+        elif isinstance(space, gymnasium.spaces.Box):
+            self.low, self.high = space.low, space.high
+            self.bounds = (space.low.ravel().tolist(), space.high.ravel().tolist())
+            self.shape = (*self.batch, *space.shape)
+            numbers = "a finite float array" if copies is None else "finite floats"
+            self.expected = f"{numbers} of shape {self.shape}"
+        else:
+            self.expected = f"in the action space {space}"
+
+    def refusal(self, action: Any) -> ValueError:
+        return ValueError(f"{self.noun} must be {self.expected}, got {action!r}")
+
+    def integer(self, action: Any) -> int:
+        """One discrete action, as a Python int: no NumPy call."""
+        if not isinstance(action, (bool, np.bool_)):
+            try:
+                index = operator.index(action)
+            except TypeError:
+                raise self.refusal(action) from None
+            if self.low <= index < self.high:
+                return index
+        raise self.refusal(action)
+
+    def integers(self, actions: Any) -> np.ndarray:
+        values = _numbers(actions, "iu")
+        if values is None or values.shape != self.batch:
+            raise self.refusal(actions)
+        if values.min() < self.low or values.max() >= self.high:
+            raise self.refusal(actions)
+        return values.astype(np.int32, copy=False)
+
+    def box(self, action: Any) -> np.ndarray:
+        values = _numbers(action, "iuf")
+        if values is None or values.shape != self.shape:
+            raise self.refusal(action)
+        values = values.astype(self.space.dtype, copy=False)
+        if (
+            not self.batch
+        ):  # one action inside the bounds, the common case, checked on Python floats
+            inside = zip(values.ravel().tolist(), *self.bounds, strict=True)
+            if all(low <= value <= high for value, low, high in inside):  # False for NaN
+                return values
+        if not np.isfinite(values).all():
+            raise self.refusal(action)
+        return np.minimum(np.maximum(values, self.low), self.high)
+
+    def contained(self, action: Any) -> Any:
+        if not self.space.contains(np.asarray(action, self.space.dtype)):
+            raise self.refusal(action)
+        return action
+
+
+def _numbers(action: Any, kinds: str) -> np.ndarray | None:
+    """``action`` as a NumPy array whose dtype is one of ``kinds`` (NumPy's kind letters), else None."""
+    try:
+        values = np.asarray(action)
+    except (TypeError, ValueError):  # ragged lists
+        return None
+    return values if values.dtype.kind in kinds else None
+
+
 class JaxPrograms:
     """One copy of the core contextual env, compiled: each call one uint32 vector in, one out.
 
@@ -142,15 +248,8 @@ class JaxPrograms:
         self.schedule = schedule
         self.space = env.context_space
         self.discrete = isinstance(env.action_space, Discrete)
-        table = context_table(schedule)
-        state = jax.eval_shape(
-            lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
-        )
-        self.packer = Packer(state)
-        started = jax.eval_shape(
-            lambda key: contextual_env(env, schedule, table).reset(key)[1], jax.random.key(0)
-        )
-        self.info_packer = Packer(env_step_info(started))
+        self.packer, started_info = program_layout(env, schedule)
+        self.info_packer = Packer(started_info)
         self.begin = cpu_jit(self._begin_fn)
         self.begin_with = cpu_jit(self._begin_with_fn)
         self.restart = cpu_jit(self._restart_fn)
@@ -214,11 +313,10 @@ class JaxPrograms:
 
 
 class JaxBackend:
-    """A JAX ``Env`` stepped through :class:`JaxPrograms`; the host keeps the packed state."""
+    """A JAX ``Env`` stepped through :class:`JaxPrograms`; the host keeps the packed state. The time limit
+    and the context observation are the core env's; the action rule is :func:`action_check`'s."""
 
     def __init__(self, env: Env, schedule: ContextSchedule):
-        self.env = env
-        self.schedule = schedule
         self.space = env.context_space
         key = schedule.selection_key
         self.programs = shared_program(
@@ -227,13 +325,13 @@ class JaxBackend:
         self.packer = self.programs.packer
         self.table = on_cpu(context_table(schedule))
         self.action_space = env.action_space.to_gymnasium()
-        self.flat_space = env.observation_space.to_gymnasium()
-        self.base_size = int(np.prod(env.base_observation_space.shape))
-        self.obs_size = int(np.prod(env.observation_space.shape))
+        self.check = action_check(self.action_space)
+        self.flat_space, self.base_space = observation_spaces(env)
+        self.obs_size = int(np.prod(self.flat_space.shape))
         self.carry: np.ndarray | None = None
         self.info_packer = self.programs.info_packer
         # The environment's facts of the last start or step (``Env.step_info``), for gymnasium's info.
-        self.step_info: dict[str, Any] = {}
+        self._step_info: dict[str, Any] = {}
         self._discrete = self.programs.discrete
         action_words = 1 if self._discrete else int(np.prod(self.action_space.shape))
         self._buffer = np.zeros(self.packer.size + action_words, np.uint32)
@@ -256,7 +354,11 @@ class JaxBackend:
 
     def _read_step_info(self, words: np.ndarray) -> None:
         if self.info_packer.size:
-            self.step_info = info_to_host(self.info_packer.unpack_host(words))
+            self._step_info = info_to_host(self.info_packer.unpack_host(words))
+
+    def step_info(self) -> dict[str, Any]:
+        """The environment's facts of the last start or step (``Env.step_info``)."""
+        return self._step_info
 
     @staticmethod
     def _override_words(override: tuple[np.ndarray, int]) -> np.ndarray:
@@ -269,11 +371,12 @@ class JaxBackend:
         )
 
     def begin(
-        self, key_bits: np.ndarray, copy: int, num_copies: int, override=None
+        self, key_bits: np.ndarray, copy: int, num_copies: int, override=None, rng=None
     ) -> tuple[np.ndarray, np.ndarray, int]:
         """A new run's first episode (global episode ``copy``): (observation, context vector, id).
 
-        ``override``: (context vector, id) to run instead of the selector's choice.
+        ``override``: (context vector, id) to run instead of the selector's choice. ``rng`` is for host
+        simulators: every draw here comes from the key.
         """
         head = np.concatenate([key_bits, np.array([copy, num_copies], np.uint32)])
         if override is None:
@@ -288,28 +391,8 @@ class JaxBackend:
         words = np.concatenate([self.carry, self._override_words(override)])
         return self._unpack_start(np.asarray(self.programs.restart_with(words, self.table)))
 
-    def _checked_action(self, action: Any) -> int | np.ndarray:
-        """``action`` as an int (discrete) or a float32 array of the action's shape, else ValueError."""
-        if self._discrete:
-            try:
-                index = operator.index(action)
-            except TypeError:
-                index = -1
-            if not 0 <= index < self.action_space.n:
-                raise ValueError(
-                    f"action must be an integer in [0, {self.action_space.n}), got {action!r}"
-                )
-            return index
-        values = np.asarray(action, np.float32)
-        if values.shape != self.action_space.shape or not np.all(np.isfinite(values)):
-            raise ValueError(
-                f"action must be a finite float array of shape {self.action_space.shape}, "
-                f"got {action!r}"
-            )
-        return values
-
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        checked = self._checked_action(action)
+        checked = self.check(action)
         if self._discrete:
             self._action_slot[0] = checked
         else:
@@ -342,104 +425,97 @@ def steps_on_host(env: Env) -> bool:
     return offers and not env.steps_need_key and type(env).step_info is Env.step_info
 
 
-class ScalarBackend(JaxBackend):
-    """A JAX ``Env`` whose episodes start in the compiled program and then step on the host.
+class ScalarPhysics:
+    """A JAX ``Env``'s scalar physics as a host simulator, behind a ``HostEnv``'s calls.
 
     A compiled call costs about 15 µs on a CPU whatever it computes; the same physics on Python floats
     (the env's ``host_transition``, written once against an array namespace together with its JAX
-    ``transition``, see ``contextrl.core.scalar``) costs a few. Episodes start and restart through the
-    compiled core (same contexts, same start states); each step then runs in Python and rounds the state
-    and reward to float32, as the JAX path holds them. The host computes in double precision, so
-    trajectories agree with the JAX backend's to float32 rounding, not bit for bit. Only deterministic
-    steps run here: the episode ends where the core's would (``terminated`` or the time limit).
+    ``transition``, see ``contextrl.core.scalar``) costs a few. Each episode starts with the env's own
+    ``init`` and ``observe`` (:meth:`start`, compiled into :class:`HostBackend`'s start program, which
+    derives the episode's start key), so start states are the compiled path's; each step then runs in
+    Python and rounds the state and reward to float32, as the compiled path holds them. The host computes
+    in double precision, so trajectories agree with the compiled path's to float32 rounding, not bit for
+    bit. Only deterministic steps run here (:func:`steps_on_host`).
     """
 
-    def __init__(self, env: Env, schedule: ContextSchedule):
-        super().__init__(env, schedule)
-        self._physics_words = self._physics_slice()
-        self._host_transition = env.host_transition
-        self._host_observe = env.host_observe
-        self._max_steps = env.max_steps
-        self._state: list[float] = []
-        self._time = 0
-        self._context: types.SimpleNamespace | None = None
-        self._extra: list[float] = []  # the appended context values, constant through an episode
-
-    def _physics_slice(self) -> slice:
-        """Where the physics state (one float32 array) lies in the packed carry.
-
-        Read straight from the carry: unpacking the whole pytree at every start would cost as much as
-        several steps.
-        """
-        packer = self.packer
-        leaf_ids = jax.tree_util.tree_unflatten(packer.treedef, range(len(packer.sizes)))
-        leaf = leaf_ids.env_state.physics
-        if not isinstance(leaf, int) or packer.dtypes[leaf] != np.float32:
+    def __init__(self, env: Env):
+        self.env = env
+        self.context_space = env.context_space
+        self.action_space = env.action_space.to_gymnasium()
+        self.base_observation_space = env.base_observation_space.to_gymnasium()
+        self._discrete = isinstance(env.action_space, Discrete)
+        self._names = self.context_space.names
+        physics = jax.eval_shape(env.init, jax.random.key(0), env.default_context())
+        if not isinstance(physics, jax.ShapeDtypeStruct) or physics.dtype != jnp.float32:
             raise TypeError(
-                f"{self.env.name}'s host path needs its physics state to be one float32 array"
+                f"{env.name}'s host path needs its physics state to be one float32 array"
             )
-        start = sum(packer.sizes[:leaf])
-        return slice(start, start + packer.sizes[leaf])
+        self._size = int(np.prod(physics.shape))
+        self._transition = env.host_transition
+        self._observe = env.host_observe
+        self.state: list[float] = []
+        self.context: Any = None
+        self._values: types.SimpleNamespace | None = None  # the context as Python floats
 
-    def _host_start(self, started):
-        obs, context_vector, index = started
-        self._state = self.carry[self._physics_words].view(np.float32).tolist()
-        self._time = 0
-        self._context = types.SimpleNamespace(
-            **dict(zip(self.space.names, context_vector.tolist(), strict=True))
-        )
-        self._extra = obs[self.base_size :].tolist()
-        return obs, context_vector, index
+    def start(self, key: jax.Array, context: Any) -> jax.Array:
+        """The start state drawn from the episode's start key, then its observation (float32, traced)."""
+        physics = self.env.init(key, context)
+        return jnp.concatenate([physics.ravel(), self.env.observe(physics, context).ravel()])
 
-    def begin(self, key_bits, copy, num_copies, override=None):
-        return self._host_start(super().begin(key_bits, copy, num_copies, override))
+    def reset_physics(self, context: Any, started: np.ndarray) -> np.ndarray:
+        """Start an episode under ``context`` from :meth:`start`'s result; the first observation."""
+        if context is not self.context:
+            values = [float(getattr(context, name)) for name in self._names]
+            self._values = types.SimpleNamespace(**dict(zip(self._names, values, strict=True)))
+            self.context = context
+        self.state = started[: self._size].tolist()
+        return started[self._size :]
 
-    def restart(self, override=None):
-        # The carry's physics is the episode's start (the host steps alone); a restart needs only the
-        # carry's run key and episode index.
-        return self._host_start(super().restart(override))
-
-    def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        checked = self._checked_action(action)
-        action = checked if self._discrete else checked.ravel().tolist()
-        state, reward, terminated = self._host_transition(self._state, action, self._context)
+    def step_physics(self, action: Any) -> tuple[list[float], float, bool]:
+        """``(observation, reward, terminated)`` of one checked action, on Python floats."""
+        action = action if self._discrete else action.ravel().tolist()
+        state, reward, terminated = self._transition(self.state, action, self._values)
         rounded = np.array([*state, reward], np.float32).tolist()
-        self._state = rounded[:-1]
-        self._time += 1
-        base = self._host_observe(self._state, self._context)
-        obs = np.array([*base, *self._extra], np.float32)
-        return obs, rounded[-1], bool(terminated), self._time >= self._max_steps
+        self.state = rounded[:-1]
+        return self._observe(self.state, self._values), rounded[-1], bool(terminated)
+
+    def step_info(self) -> dict[str, Any]:
+        """No facts: an env that reports them steps in the compiled programs."""
+        return {}
 
     def physics_and_context(self) -> tuple[Any, Any]:
-        return np.asarray(self._state, np.float32), self.packer.unpack_host(self.carry).context
+        """The current physics state and context as NumPy values (for rendering)."""
+        return np.asarray(self.state, np.float32), self.context
+
+    def close(self) -> None:
+        """Nothing to release."""
 
 
 class HostBackend:
-    """A ``HostEnv`` simulator; the adapter adds the time limit and the context observation.
+    """A host simulator stepped from Python: a ``HostEnv``, or a JAX env's :class:`ScalarPhysics`.
 
-    Each episode's context comes from :func:`contextrl.core.choose_context`, the JAX environments'
-    selection code, with the same global episode index.
+    The simulator applies the context and steps; this backend owns the rest of the host path once: each
+    episode's context (:func:`contextrl.core.choose_context`, the compiled path's selection code, with
+    the same global episode index) and start key, the context observation, the time limit and the action
+    rule. A ``HostEnv`` starts from the generator ``reset(seed=...)`` seeded, scalar physics from the
+    episode's start key. An episode's start is one compiled call.
     """
 
     def __init__(
         self,
-        env: HostEnv,
+        simulator: Any,
         schedule: ContextSchedule,
         obs_context: ContextObservation,
         max_steps: int,
     ):
-        self.env = env
+        self.simulator = simulator
         self.schedule = schedule
-        self.space = env.context_space
+        self.space = simulator.context_space
         self.obs_context = obs_context
         self.max_steps = max_steps
-        self.action_space = env.action_space
-        if isinstance(self.action_space, gymnasium.spaces.Box):
-            bounds = (self.action_space.low, self.action_space.high)
-            self._action_bounds = tuple(bound.ravel().tolist() for bound in bounds)
-        base = env.base_observation_space
-        self.base_space = base
-        self.base_size = int(np.prod(base.shape))
+        self.action_space = simulator.action_space
+        self.check = action_check(self.action_space)
+        self.base_space = base = simulator.base_observation_space
         if obs_context.hidden:  # the original observation as it is (pixels keep shape and dtype)
             self.flat_space = base
         else:
@@ -449,93 +525,135 @@ class HostBackend:
                 np.concatenate([np.ravel(base.high), high]).astype(np.float32),
                 dtype=np.float32,
             )
-        self.obs_size = int(np.prod(self.flat_space.shape))
         self.table = on_cpu(context_table(schedule))
-        self._choose = cpu_jit(self._choose_fn)
-        self._values = cpu_jit(lambda context, key: obs_context.values(self.space, context, key))
+        self._keyed = isinstance(simulator, ScalarPhysics)
+        self._start_program = cpu_jit(self._start_fn)
+        self._extra = cpu_jit(self._extra_fn)
+        self._features = len(self.space)
+        self._extra_size = 0 if obs_context.hidden else len(obs_context.features)
+        # The start program's words: run key data, episode, 1 where a context is given, its id, values.
+        self._words = np.zeros(5 + self._features, np.uint32)
+        self._members: dict[int, Any] = {}  # the context objects of the set's members, built once
         self.time = 0
-        self.context = None
+        self.context: Any = None
         self._run: tuple[np.ndarray, int, int] | None = None  # key bits, episode, number of copies
-        self._episode_key = None
-        self._fixed_extra: np.ndarray | None = None
+        self._rng: np.random.Generator | None = None
+        self._vector: np.ndarray | None = None
+        self._start_key: np.ndarray | None = None
+        self._fixed_extra: np.ndarray | None = None  # the context observation when it has no noise
 
-    def _choose_fn(self, key_bits, episode, table):
+    def _extra_fn(self, vector, start_key_bits, time):
+        """The context observation at step ``time`` of an episode (noise drawn from its start key)."""
+        key = jax.random.fold_in(jax.random.wrap_key_data(start_key_bits), time)
+        return self.obs_context.values(self.space, self.space.from_array(vector), key)
+
+    def _start_fn(self, words, table):
+        """An episode's start in one uint32 vector: the context (the selector's or the one given) as
+        values and id, the start key's data, the first context observation and, for scalar physics,
+        the start state and observation."""
         provider = schedule_provider(self.schedule, table)
-        context, index, start_key = choose_context(provider, key_bits, episode)
-        return self.space.to_array(context), index, jax.random.key_data(start_key)
+        chosen, chosen_id, start_key = choose_context(
+            provider, words[:2], words[2].astype(jnp.int32)
+        )
+        given = words[3] == 1
+        vector = jnp.where(given, _bits_float(words[5:]), self.space.to_array(chosen))
+        index = jnp.where(given, words[4].astype(jnp.int32), jnp.asarray(chosen_id, jnp.int32))
+        bits = jax.random.key_data(start_key)
+        parts = [_float_bits(vector), lax.bitcast_convert_type(index, jnp.uint32)[None], bits]
+        if not self.obs_context.hidden:
+            parts.append(_float_bits(self._extra_fn(vector, bits, 0)))
+        if self._keyed:
+            parts.append(
+                _float_bits(self.simulator.start(start_key, self.space.from_array(vector)))
+            )
+        return jnp.concatenate(parts)
 
-    def _observation(self, base_obs) -> np.ndarray:
-        if self.obs_context.hidden:
-            return np.asarray(base_obs, self.flat_space.dtype)
-        base_obs = np.asarray(base_obs, np.float32).ravel()
-        if self._fixed_extra is not None:
-            extra = self._fixed_extra
-        else:
-            key = jax.random.fold_in(self._episode_key, self.time)
-            extra = np.asarray(self._values(self.context, key))
-        return np.concatenate([base_obs, extra])
-
-    def _start(self, rng, override) -> tuple[np.ndarray, np.ndarray, int]:
-        key_bits, episode, _ = self._run
-        chosen, index, start_key_bits = self._choose(key_bits, np.int32(episode), self.table)
-        context_vector = np.asarray(chosen, np.float32)
-        index = int(index)
-        if override is not None:
-            context_vector, index = np.asarray(override[0], np.float32), int(override[1])
-        # Built with NumPy: ``from_array``'s JAX ops would cost milliseconds per reset on the host.
-        self.context = self.space.context_class(
+    def _context(self, vector: np.ndarray, index: int) -> Any:
+        """The episode's context object, built with NumPy (``from_array``'s JAX ops would cost
+        milliseconds per reset on the host); a set member's once."""
+        if index in self._members:
+            return self._members[index]
+        context = self.space.context_class(
             **{
                 name: np.asarray(value, feature.dtype)
-                for (name, feature), value in zip(
-                    self.space.features.items(), context_vector, strict=True
-                )
+                for (name, feature), value in zip(self.space.features.items(), vector, strict=True)
             }
         )
-        self._episode_key = jax.random.wrap_key_data(start_key_bits)
-        self._fixed_extra = None
-        if not self.obs_context.hidden and self.obs_context.noise == 0:
-            self._fixed_extra = np.asarray(self._values(self.context, self._episode_key))
+        if index >= 0:
+            self._members[index] = context
+        return context
+
+    def _observation(self, base_obs: Any, extra: np.ndarray) -> np.ndarray:
+        if self.obs_context.hidden:
+            return np.asarray(base_obs, self.flat_space.dtype)
+        if isinstance(
+            base_obs, list
+        ):  # scalar physics' Python floats: one conversion, no concatenate
+            return np.array(base_obs + extra.tolist(), np.float32)
+        return np.concatenate((np.ravel(base_obs), extra), dtype=np.float32)
+
+    def _start(self, override) -> tuple[np.ndarray, np.ndarray, int]:
+        key_bits, episode, _ = self._run
+        words = self._words
+        words[:2], words[2], words[3] = key_bits, episode, override is not None
+        if override is not None:
+            words[4] = np.int32(override[1]).view(np.uint32)
+            words[5:] = np.asarray(override[0], np.float32).view(np.uint32)
+        out = np.asarray(self._start_program(words, self.table))
+        at = self._features  # the context values, its id, start key data, context observation…
+        vector = out[:at].view(np.float32)
+        index = int(out[at].view(np.int32))
+        self._start_key = out[at + 1 : at + 3]
+        end = at + 3 + self._extra_size
+        extra = out[at + 3 : end].view(np.float32)
+        self._vector = vector
+        self._fixed_extra = extra if self.obs_context.noise == 0 else None
+        self.context = self._context(vector, index)
         self.time = 0
-        base_obs = self.env.reset_physics(self.context, rng)
-        return self._observation(base_obs), context_vector, index
+        # Where the start state comes from: scalar physics' compiled start, a HostEnv's generator.
+        source = out[end:].view(np.float32) if self._keyed else self._rng
+        base_obs = self.simulator.reset_physics(self.context, source)
+        return self._observation(base_obs, extra), vector, index
 
-    def begin(self, key_bits, copy, num_copies, override=None, *, rng=None):
+    def begin(self, key_bits, copy, num_copies, override=None, rng=None):
+        """A new run's first episode (global episode ``copy``); ``rng`` seeds a ``HostEnv``'s starts."""
         self._run = (key_bits, int(copy), int(num_copies))
-        return self._start(rng, override)
+        self._rng = rng
+        return self._start(override)
 
-    def restart(self, override=None, *, rng=None):
+    def restart(self, override=None):
         key_bits, episode, num_copies = self._run
         self._run = (key_bits, episode + num_copies, num_copies)
-        return self._start(rng, override)
+        return self._start(override)
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        base_obs, reward, terminated = self.env.step_physics(self._checked_action(action))
+        base_obs, reward, terminated = self.simulator.step_physics(self.check(action))
         self.time += 1
-        obs = self._observation(base_obs)
-        return obs, float(reward), bool(terminated), self.time >= self.max_steps
+        extra = self._fixed_extra
+        if extra is None:  # a noisy context observation: drawn anew at every step
+            time = np.uint32(self.time)
+            extra = np.asarray(self._extra(self._vector, self._start_key, time))
+        return (
+            self._observation(base_obs, extra),
+            float(reward),
+            bool(terminated),
+            self.time >= self.max_steps,
+        )
 
-    def _checked_action(self, action: Any) -> Any:
-        """``action`` if it lies in the action space, else ValueError; ``Space.contains`` costs as
-        much as a tenth of a Box2D step, so the common spaces are checked directly."""
-        space = self.action_space
-        if isinstance(space, gymnasium.spaces.Discrete):
-            try:
-                index = operator.index(action)
-            except TypeError:
-                index = None
-            if index is not None and space.start <= index < space.start + space.n:
-                return index
-        elif isinstance(space, gymnasium.spaces.Box):
-            values = np.asarray(action, space.dtype)
-            low, high = self._action_bounds
-            if values.shape == space.shape and all(
-                lower <= value <= upper  # False for NaN
-                for value, lower, upper in zip(values.ravel().tolist(), low, high, strict=True)
-            ):
-                return values
-        elif space.contains(np.asarray(action, space.dtype)):
-            return action
-        raise ValueError(f"action {action!r} is outside the action space {space}")
+    def step_info(self) -> dict[str, Any]:
+        return self.simulator.step_info()
 
     def close(self) -> None:
-        self.env.close()
+        self.simulator.close()
+
+
+def make_backend(
+    env: Env | Any, schedule: ContextSchedule, obs_context: ContextObservation, max_steps: int
+) -> JaxBackend | HostBackend:
+    """The backend of ``env`` (a JAX env carrying ``obs_context``, or a ``HostEnv``): compiled programs,
+    or a host simulator (a ``HostEnv`` itself, or a JAX env's scalar physics where it offers them)."""
+    if not isinstance(env, Env):
+        return HostBackend(env, schedule, obs_context, max_steps)
+    if steps_on_host(env):
+        return HostBackend(ScalarPhysics(env), schedule, obs_context, max_steps)
+    return JaxBackend(env, schedule)

@@ -19,11 +19,12 @@ import jax
 import numpy as np
 
 from contextrl.context.features import ContextBase, ContextError
+from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import ContextSchedule, resolve_contexts
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import spec
-from contextrl.gymnasium.backends import HostBackend, JaxBackend, ScalarBackend, steps_on_host
+from contextrl.gymnasium.backends import HostBackend, make_backend
 
 RENDER_MODES = ("rgb_array", "human")
 
@@ -46,11 +47,79 @@ def build_env(
     raise TypeError(f"env_id must be a registered id or a contextrl Env/HostEnv, got {env_id!r}")
 
 
-def check_max_steps(max_steps: Any) -> None:
-    if max_steps is None:
+def check_count(name: str, value: Any, *, optional: bool = False) -> None:
+    """Refuse ``value`` unless it is a positive integer (or None where ``optional``)."""
+    if optional and value is None:
         return
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
-        raise ValueError(f"max_steps must be a positive integer or None, got {max_steps!r}")
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        allowed = "a positive integer or None" if optional else "a positive integer"
+        raise ValueError(f"{name} must be {allowed}, got {value!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """What the single and the vector env build from their shared arguments, checked before any
+    episode runs: the environment (a JAX env carrying ``obs_context``), its context schedule, the
+    context observation and the time limit (a JAX env's own, resolved by the core)."""
+
+    env: Env | HostEnv
+    schedule: ContextSchedule
+    obs_context: ContextObservation
+    max_steps: int
+
+
+def build_setup(
+    env_id: str | Env | HostEnv,
+    contexts: Any,
+    context_selector: str | Callable | None,
+    obs_context_features: None | str | Sequence[str],
+    obs_context_as_dict: bool,
+    obs_context_normalize: bool,
+    obs_context_noise: float,
+    max_steps: int | None,
+    env_kwargs: dict,
+) -> Setup:
+    """The :class:`Setup` of a face's arguments (see :class:`ContextualGymEnv`)."""
+    check_count("max_steps", max_steps, optional=True)
+    if not isinstance(obs_context_as_dict, bool):
+        raise ContextError(
+            f"obs_context_as_dict must be True or False, got {obs_context_as_dict!r}"
+        )
+    inner = build_env(env_id, max_steps, env_kwargs)
+    schedule = resolve_contexts(inner.context_space, contexts, context_selector)
+    obs_context = schedule.observation(
+        obs_context_features, obs_context_normalize, obs_context_noise
+    )
+    if obs_context_as_dict and obs_context.hidden:
+        raise ContextError(
+            "obs_context_as_dict=True needs visible context features; set "
+            'obs_context_features to "all", "varying" or a list of names'
+        )
+    if isinstance(inner, Env):
+        inner = dataclasses.replace(inner, obs_context=obs_context)
+        return Setup(inner, schedule, obs_context, inner.max_steps)
+    limit = inner.default_max_steps if max_steps is None else int(max_steps)
+    return Setup(inner, schedule, obs_context, limit)
+
+
+def observation_space(
+    flat: gymnasium.spaces.Space, base: gymnasium.spaces.Space, as_dict: bool
+) -> gymnasium.spaces.Space:
+    """One copy's observation space: ``flat`` (the original observation, then the context), or a Dict
+    of the original observation in its own space (pixels keep shape and dtype) and the context."""
+    if not as_dict:
+        return flat
+    split = int(np.prod(base.shape))
+    context = gymnasium.spaces.Box(flat.low[split:], flat.high[split:], dtype=np.float32)
+    return gymnasium.spaces.Dict({"obs": base, "context": context})
+
+
+def split_observation(flat: np.ndarray, space: gymnasium.spaces.Dict) -> dict[str, np.ndarray]:
+    """``flat`` (one observation, or a row per copy) as the Dict of :func:`observation_space`."""
+    base = space["obs"]
+    split = int(np.prod(base.shape))
+    obs = flat[..., :split].reshape(flat.shape[:-1] + base.shape)
+    return {"obs": obs.astype(base.dtype, copy=False), "context": flat[..., split:]}
 
 
 def run_key_bits(np_random: np.random.Generator) -> np.ndarray:
@@ -113,40 +182,29 @@ class ContextualGymEnv(gymnasium.Env):
         num_copies: int = 1,
         **env_kwargs: Any,
     ):
-        check_max_steps(max_steps)
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(
                 f"render_mode must be None or one of {RENDER_MODES}, got {render_mode!r}"
-            )
-        if not isinstance(obs_context_as_dict, bool):
-            raise ContextError(
-                f"obs_context_as_dict must be True or False, got {obs_context_as_dict!r}"
             )
         for name, value in (("copy_index", copy_index), ("num_copies", num_copies)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise ValueError(f"{name} must be an integer, got {value!r}")
         if not 0 <= copy_index < num_copies:
             raise ValueError(f"copy_index {copy_index} must lie in [0, num_copies={num_copies})")
-        inner = build_env(env_id, max_steps, env_kwargs)
-        self.schedule: ContextSchedule = resolve_contexts(
-            inner.context_space, contexts, context_selector
+        made = build_setup(
+            env_id,
+            contexts,
+            context_selector,
+            obs_context_features,
+            obs_context_as_dict,
+            obs_context_normalize,
+            obs_context_noise,
+            max_steps,
+            env_kwargs,
         )
-        obs_context = self.schedule.observation(
-            obs_context_features, obs_context_normalize, obs_context_noise
-        )
-        if obs_context_as_dict and obs_context.hidden:
-            raise ContextError(
-                "obs_context_as_dict=True needs visible context features; set "
-                'obs_context_features to "all", "varying" or a list of names'
-            )
-        if isinstance(inner, Env):
-            inner = dataclasses.replace(inner, obs_context=obs_context)
-            backend = ScalarBackend if steps_on_host(inner) else JaxBackend
-            self.backend = backend(inner, self.schedule)
-            self.max_steps = inner.max_steps
-        else:
-            self.max_steps = inner.default_max_steps if max_steps is None else int(max_steps)
-            self.backend = HostBackend(inner, self.schedule, obs_context, self.max_steps)
+        inner, self.schedule, obs_context = made.env, made.schedule, made.obs_context
+        self.max_steps = made.max_steps
+        self.backend = make_backend(inner, self.schedule, obs_context, self.max_steps)
         self.contextrl_env = inner
         self.obs_context = obs_context
         self.context_space = inner.context_space
@@ -166,37 +224,13 @@ class ContextualGymEnv(gymnasium.Env):
             "render_modes": modes,
         }
         self.action_space = self.backend.action_space
-        self.observation_space = self._observation_space()
+        self.observation_space = observation_space(
+            self.backend.flat_space, self.backend.base_space, obs_context_as_dict
+        )
         self._key_bits: np.ndarray | None = None
         self._info: dict[str, Any] = {}
         self._values_of_member: dict[int, dict[str, Any]] = {}
         self._window = None  # the "human" render window, opened on the first frame
-
-    def _observation_space(self) -> gymnasium.spaces.Space:
-        flat = self.backend.flat_space
-        if not self.obs_context_as_dict:
-            return flat
-        split = self.backend.base_size
-        # A host env's original observation keeps its own space there (pixels: shape and dtype).
-        base = getattr(self.backend, "base_space", None)
-        if base is None:
-            base = gymnasium.spaces.Box(flat.low[:split], flat.high[:split], dtype=np.float32)
-        return gymnasium.spaces.Dict(
-            {
-                "obs": base,
-                "context": gymnasium.spaces.Box(
-                    flat.low[split:], flat.high[split:], dtype=np.float32
-                ),
-            }
-        )
-
-    def _observation(self, flat: np.ndarray):
-        if not self.obs_context_as_dict:
-            return flat
-        split = self.backend.base_size
-        obs_space = self.observation_space["obs"]
-        obs = flat[:split].reshape(obs_space.shape).astype(obs_space.dtype, copy=False)
-        return {"obs": obs, "context": flat[split:]}
 
     def _override(self, options: Mapping[str, Any] | None) -> tuple[np.ndarray, int] | None:
         """(context vector, set index or -1) asked for by ``reset(options=...)``, validated, or None."""
@@ -207,14 +241,13 @@ class ContextualGymEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         override = self._override(options)
         super().reset(seed=seed)
-        host = {"rng": self.np_random} if isinstance(self.backend, HostBackend) else {}
         if seed is not None or self._key_bits is None:
             self._key_bits = run_key_bits(self.np_random)
             started = self.backend.begin(
-                self._key_bits, self.copy_index, self.num_copies, override, **host
+                self._key_bits, self.copy_index, self.num_copies, override, self.np_random
             )
         else:
-            started = self.backend.restart(override, **host)
+            started = self.backend.restart(override)
         obs, context_vector, index = started
         self._info = {
             "context_id": self.schedule.user_id(index),
@@ -223,6 +256,11 @@ class ContextualGymEnv(gymnasium.Env):
         if self.render_mode == "human":
             self.render()
         return self._observation(obs), self._fresh_info()
+
+    def _observation(self, flat: np.ndarray) -> Any:
+        if not self.obs_context_as_dict:
+            return flat
+        return split_observation(flat, self.observation_space)
 
     def _values(self, index: int, context_vector: np.ndarray) -> dict[str, Any]:
         """Feature values for ``info``; a set member's are converted once and remembered."""
@@ -236,10 +274,7 @@ class ContextualGymEnv(gymnasium.Env):
         """A new info dict per call (users keep them; gymnasium's checker insists), with what the
         environment reports of its episode (``step_info``: e.g. completed, died, distance)."""
         info = {"context_id": self._info["context_id"], "context": dict(self._info["context"])}
-        if isinstance(self.backend, HostBackend):
-            info.update(self.contextrl_env.step_info())
-        else:
-            info.update(self.backend.step_info)
+        info.update(self.backend.step_info())
         return info
 
     def step(self, action):
@@ -256,11 +291,13 @@ class ContextualGymEnv(gymnasium.Env):
         return dict(self._info.get("context", {}))
 
     def _frame(self) -> np.ndarray:
-        if isinstance(self.backend, HostBackend):
+        if isinstance(self.contextrl_env, HostEnv):
             return self.contextrl_env.render_frame()
         from contextrl.render import draw
 
-        physics, context = self.backend.physics_and_context()
+        backend = self.backend  # a JAX env's state is the compiled programs' or its scalar physics'
+        source = backend.simulator if isinstance(backend, HostBackend) else backend
+        physics, context = source.physics_and_context()
         return draw(self.contextrl_env, physics, context, world_box=self.render_world_box)
 
     def render(self):

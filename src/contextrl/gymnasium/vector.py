@@ -14,7 +14,6 @@ from gymnasium's ``AsyncVectorEnv`` of single adapters (see :func:`make_vector_e
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -26,25 +25,28 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from contextrl.context.features import ContextError
-from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
+from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
 from contextrl.gymnasium.backends import (
+    action_check,
     context_table,
     contextual_env,
     env_step_info,
+    observation_spaces,
+    program_layout,
     shared_program,
 )
 from contextrl.gymnasium.env import (
     ContextualGymEnv,
-    build_env,
-    check_max_steps,
+    build_setup,
+    check_count,
+    observation_space,
     render_fps,
     reset_override,
     run_key_bits,
+    split_observation,
 )
-from contextrl.gymnasium.packing import Packer
 
 
 class VectorPrograms:
@@ -62,18 +64,11 @@ class VectorPrograms:
         self.schedule = schedule
         self.num_envs = num_envs
         self.space = env.context_space
-        table = context_table(schedule)
-        state = jax.eval_shape(
-            lambda key: contextual_env(env, schedule, table).reset(key)[0], jax.random.key(0)
-        )
-        self.packer = Packer(state)
-        started = jax.eval_shape(
-            lambda key: contextual_env(env, schedule, table).reset(key)[1], jax.random.key(0)
-        )
+        self.packer, started_info = program_layout(env, schedule)
         # name → (dtype, values per copy) of the environment's step facts, in row order.
         self.step_info = {
             name: (np.dtype(value.dtype), int(np.prod(value.shape)))
-            for name, value in env_step_info(started).items()
+            for name, value in started_info.items()
         }
         self.reset = jax.jit(self._reset)
         self.step = jax.jit(self._step, donate_argnums=0)
@@ -149,54 +144,33 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         render_mode: str | None = None,
         **env_kwargs: Any,
     ):
-        if (
-            isinstance(num_envs, bool)
-            or not isinstance(num_envs, (int, np.integer))
-            or num_envs < 1
-        ):
-            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        check_max_steps(max_steps)
+        check_count("num_envs", num_envs)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if not isinstance(obs_context_as_dict, bool):
-            raise ContextError(
-                f"obs_context_as_dict must be True or False, got {obs_context_as_dict!r}"
-            )
-        env = build_env(env_id, max_steps, env_kwargs)
-        if not isinstance(env, Env):
-            raise TypeError(f"{env.name} is a host environment; use make_vector_env for it")
-        self.schedule = resolve_contexts(env.context_space, contexts, context_selector)
-        obs_context = self.schedule.observation(
-            obs_context_features, obs_context_normalize, obs_context_noise
+        made = build_setup(
+            env_id,
+            contexts,
+            context_selector,
+            obs_context_features,
+            obs_context_as_dict,
+            obs_context_normalize,
+            obs_context_noise,
+            max_steps,
+            env_kwargs,
         )
-        if obs_context_as_dict and obs_context.hidden:
-            raise ContextError(
-                "obs_context_as_dict=True needs visible context features; set "
-                'obs_context_features to "all", "varying" or a list of names'
-            )
-        self.env = dataclasses.replace(env, obs_context=obs_context)
+        if not isinstance(made.env, Env):
+            raise TypeError(f"{made.env.name} is a host environment; use make_vector_env for it")
+        self.env, self.schedule = made.env, made.schedule
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.obs_context_as_dict = obs_context_as_dict
-        self.context_space = env.context_space
-        self.metadata = {**self.metadata, "render_fps": render_fps(env)}
+        self.context_space = self.env.context_space
+        self.metadata = {**self.metadata, "render_fps": render_fps(self.env)}
         self.single_action_space = self.env.action_space.to_gymnasium()
-        self._discrete = isinstance(self.single_action_space, gymnasium.spaces.Discrete)
-        flat = self.env.observation_space.to_gymnasium()
-        self.base_size = int(np.prod(self.env.base_observation_space.shape))
+        self.check = action_check(self.single_action_space, self.num_envs)
+        flat, base = observation_spaces(self.env)
+        self.single_observation_space = observation_space(flat, base, obs_context_as_dict)
         self.obs_size = flat.shape[0]
-        if obs_context_as_dict:
-            split = self.base_size
-            self.single_observation_space = gymnasium.spaces.Dict(
-                {
-                    "obs": gymnasium.spaces.Box(flat.low[:split], flat.high[:split], np.float32),
-                    "context": gymnasium.spaces.Box(
-                        flat.low[split:], flat.high[split:], np.float32
-                    ),
-                }
-            )
-        else:
-            self.single_observation_space = flat
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         ids = self.schedule.ids
@@ -243,7 +217,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
     def _observations(self, flat: np.ndarray):
         if not self.obs_context_as_dict:
             return flat
-        return {"obs": flat[:, : self.base_size], "context": flat[:, self.base_size :]}
+        return split_observation(flat, self.single_observation_space)
 
     def _context_info(self) -> dict[str, Any]:
         """Feature name → one value per copy (columns of the kept values: work per feature)."""
@@ -335,32 +309,10 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self._update_values(rows, ~given)
         return self._observations(rows[:, self._obs_slice]), self._info(rows)
 
-    def _checked_actions(self, actions) -> np.ndarray:
-        """The actions as one int32 or float32 array, refused unless valid for every copy."""
-        if self._discrete:
-            actions = np.asarray(actions)
-            if actions.shape != (self.num_envs,) or actions.dtype.kind not in "iu":
-                raise ValueError(
-                    f"actions must be {self.num_envs} integers in [0, {self.single_action_space.n}), "
-                    f"got {actions!r}"
-                )
-            if actions.astype(np.uint64).max() >= self.single_action_space.n:  # negatives wrap
-                raise ValueError(
-                    f"actions must lie in [0, {self.single_action_space.n}), got {actions!r}"
-                )
-            return actions.astype(np.int32, copy=False)
-        values = np.asarray(actions, np.float32)
-        expected = (self.num_envs, *self.single_action_space.shape)
-        if values.shape != expected or not np.isfinite(values).all():
-            raise ValueError(f"actions must be finite floats of shape {expected}, got {actions!r}")
-        return values
-
     def step(self, actions):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        self._carry, rows = self.programs.step(
-            self._carry, self._checked_actions(actions), self.table
-        )
+        self._carry, rows = self.programs.step(self._carry, self.check(actions), self.table)
         rows = np.asarray(rows)
         d = self.obs_size
         terminated = rows[:, d + 1] > 0.5
@@ -414,8 +366,7 @@ def make_vector_env(
         return ContextualVectorEnv(env_id, num_envs, **kwargs)
     if vectorization not in ("async", "sync"):
         raise ValueError(f"vectorization must be 'async' or 'sync', got {vectorization!r}")
-    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-        raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+    check_count("num_envs", num_envs)
     ContextualGymEnv(env_id, **kwargs).close()  # validate every argument here, not in N workers
     factories = [
         functools.partial(ContextualGymEnv, env_id, copy_index=i, num_copies=num_envs, **kwargs)
