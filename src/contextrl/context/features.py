@@ -77,7 +77,8 @@ class Feature:
                 f"{self.name}: expected a scalar or a 1-D batch, got shape {array.shape}"
             )
         if not np.all(np.isfinite(array)):
-            raise ContextError(f"{self.name}: value {value!r} is not finite (NaN or inf)")
+            bad = array[~np.isfinite(array)].flat[0]  # the value itself, not the container's repr
+            raise ContextError(f"{self.name}: value {bad:g} is not finite (NaN or inf)")
         if self.kind != "float" and not np.all(np.equal(np.round(array), array)):
             raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
         # Compared at the precision a context holds, so a stored bound value passes a second check.
