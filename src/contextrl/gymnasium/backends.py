@@ -209,9 +209,8 @@ class ActionRule:
         if values is None or values.shape != self.shape:
             raise self.refusal(action)
         values = values.astype(self.space.dtype, copy=False)
-        if (
-            not self.batch
-        ):  # one action inside the bounds, the common case, checked on Python floats
+        # One action inside the bounds, the common case, checked on Python floats.
+        if not self.batch:
             inside = zip(values.ravel().tolist(), *self.bounds, strict=True)
             if all(low <= value <= high for value, low, high in inside):  # False for NaN
                 return values
@@ -586,9 +585,7 @@ class HostBackend:
     def _observation(self, base_obs: Any, extra: np.ndarray) -> np.ndarray:
         if self.obs_context.hidden:
             return np.asarray(base_obs, self.flat_space.dtype)
-        if isinstance(
-            base_obs, list
-        ):  # scalar physics' Python floats: one conversion, no concatenate
+        if isinstance(base_obs, list):  # scalar physics' Python floats: one conversion
             return np.array(base_obs + extra.tolist(), np.float32)
         return np.concatenate((np.ravel(base_obs), extra), dtype=np.float32)
 
