@@ -1,7 +1,7 @@
 """How much of the context the agent sees: hidden, all features, a subset, normalised, noisy.
 
 This is the one transform from a context to agent input ("obs_context"): environments append it to
-their observation (``obs_context_features=``), agents feed it to their networks (``obs_context=``).
+their observation (``obs_context_features=``), agents feed it to their networks (their ``variant``).
 
 Hidden (no features) keeps the observation exactly the original environment's. Visible features are
 appended to it; normalised values are mapped to [0, 1] by the feature bounds; noise multiplies each value
