@@ -68,6 +68,17 @@ def test_side_by_side_and_gif_round_trip(tmp_path):
         write_gif([], tmp_path / "b.gif", fps=10)
 
 
+def test_panel_labels_are_readable_on_dark_frames():
+    """A caption is black on a white box, so it shows on a black frame (LunarLander's sky) too."""
+    dark = np.zeros((60, 120, 3), np.uint8)
+    image = side_by_side([dark, dark], ["length 0.25", "length 0.75"])
+    for left in (0, 124):
+        caption = image[2:24, left : left + 100]
+        assert (caption == 255).all(axis=-1).sum() > 100  # the box
+        assert (caption == 0).all(axis=-1).sum() > 20  # the letters on it
+    assert (image[40:, :120] == 0).all() and (image[40:, 124:] == 0).all()  # frames untouched
+
+
 def _box(env, context):
     from contextrl.render import renderer_for
 

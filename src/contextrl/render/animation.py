@@ -42,6 +42,9 @@ def side_by_side(panels: Sequence[np.ndarray], labels: Sequence[str] = ()) -> np
         draw = ImageDraw.Draw(picture)
         x = 0
         for panel, label in zip(padded, labels, strict=True):
+            # Black on a white box: readable on a dark frame (LunarLander's sky) as on a light one.
+            left, top, right, bottom = draw.textbbox((x + 8, 6), label)
+            draw.rectangle((left - 3, top - 3, right + 3, bottom + 3), fill=(255, 255, 255))
             draw.text((x + 8, 6), label, fill=(0, 0, 0))
             x += panel.shape[1] + separator.shape[1]
         image = np.asarray(picture)
