@@ -72,6 +72,9 @@ def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_
     assert best["learning_rate"] in last["hp.learning_rate"].tolist()
     html = (out / "report.html").read_text()
     assert "Hyper-parameter optimisation (PB2)" in html and 'data-figure="hpo-schedules"' in html
+    # The summary says what was trained: the population, not the spec's unused seed count.
+    assert "a population of 2 members, 3 rounds of 256 steps each (base seed 7)" in html
+    assert "3 seeds" not in html
     # the best configuration as the agent of another protocol
     other = tmp_path / "visibility"
     argv = ["run", "visibility", "--agent-config", str(out / "best.yaml"), "--out", str(other)]

@@ -671,7 +671,7 @@ def build_report(run: RunDir) -> str:
     if spec.trains_agents:
         summary += (
             f" on {spec.env} with agent {spec.agent}; variants {list(spec.variants)}; "
-            f"{spec.seeds} seeds (base seed {spec.seed})."
+            f"{spec.runs_text()}."
         )
     sections = [
         Section(

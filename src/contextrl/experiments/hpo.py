@@ -71,6 +71,12 @@ class HPOSpec(CommonSpec):
 
     runs_on_ray = True
 
+    def runs_text(self) -> str:
+        return (
+            f"a population of {self.population} members, {self.rounds} rounds of "
+            f"{self.steps_per_round} steps each (base seed {self.seed}); the best member is evaluated"
+        )
+
     def validate(self) -> None:
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):

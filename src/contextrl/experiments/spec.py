@@ -323,6 +323,10 @@ class CommonSpec:
         report reads the same numbers."""
         raise NotImplementedError
 
+    def runs_text(self) -> str:
+        """What the report's summary says was trained."""
+        return f"{self.seeds} seeds (base seed {self.seed})"
+
     def progress_row(self, run, plan, results, failures) -> dict:
         """The report's progress table row."""
         return {
