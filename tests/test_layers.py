@@ -21,7 +21,13 @@ _spec.loader.exec_module(import_graph)
 LAYERS = [
     (
         "core + context",
-        ["contextrl.core", "contextrl.context", "contextrl.xla_flags", "contextrl.testing"],
+        [
+            "contextrl.core",
+            "contextrl.context",
+            "contextrl.xla_flags",
+            "contextrl.compile_cache",
+            "contextrl.testing",
+        ],
     ),
     ("envs", ["contextrl.envs", "contextrl.render"]),
     ("gymnasium", ["contextrl.gymnasium", "contextrl.carl", "contextrl.gymnax", "contextrl"]),

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 import contextrl as crl
+from contextrl.compile_cache import cache_contents, clear_cache, use_compilation_cache
 from contextrl.context.features import ContextError, ContextSpace
 from contextrl.xla_flags import xla_cpu_workaround
 
@@ -224,6 +225,25 @@ def add_docs(subparsers) -> None:
     parser.set_defaults(handler=run_docs)
 
 
+def run_cache(args: argparse.Namespace) -> int:
+    path = use_compilation_cache()
+    if args.action == "clear":
+        files, size = clear_cache(path)
+        print(f"removed {files} files ({size / 1e6:.1f} MB) from {path}")
+    else:
+        files, size = cache_contents(path)
+        print(f"{path}: {files} files, {size / 1e6:.1f} MB")
+    return 0
+
+
+def add_cache(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "cache", help="show or clear the compiled programs runs share (JAX's persistent cache)"
+    )
+    parser.add_argument("action", nargs="?", choices=["show", "clear"], default="show")
+    parser.set_defaults(handler=run_cache)
+
+
 def record(
     env_id: str,
     contexts: Sequence[dict[str, Any]],
@@ -349,6 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_describe(subparsers)
     add_docs(subparsers)
     add_render(subparsers)
+    add_cache(subparsers)
     # imported here: the experiment layer loads pandas and matplotlib, which `list` does not need
     from contextrl.experiments.commands import add_eval, add_report, add_run
 
@@ -375,6 +396,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``contextrl`` command: a user error prints one line and exits with status 2
     (``--debug`` shows the traceback instead); Ctrl-C exits with status 130."""
     xla_cpu_workaround()  # before this process starts JAX's CPU backend
+    use_compilation_cache()  # a second run of the same spec loads what the first compiled
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     args = build_parser().parse_args([a for a in argv if a != "--debug"])

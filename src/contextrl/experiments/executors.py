@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterator
 
 from tqdm import tqdm
 
+from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.protocols import Plan, expand
 from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
@@ -269,6 +270,7 @@ def connect(executor: str, address: str | None, on_ray: bool = False, join: bool
 def _remote_chunk(spec_data: dict, chunk: int):
     """What a worker (Ray's or a local process) runs: rebuild the plan from the spec, run one chunk."""
     xla_cpu_workaround()  # a fresh worker: before its first JAX computation
+    use_compilation_cache()  # workers load what another worker or an earlier run compiled
     plan = expand(parse_spec(spec_data))
     return run_chunk(plan, plan.chunks[chunk])
 

@@ -29,6 +29,7 @@ import yaml
 from contextrl.agents import ConfigError, evaluate, get_agent, load_checkpoint, save_checkpoint
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
+from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
 from contextrl.experiments.runs import Summary, write_parquet, write_text
@@ -179,14 +180,12 @@ def _trainable(config: dict) -> None:
 
     Its keys come from the spec's seed, its member index and the round, so a rerun trains the same.
     Synchronous PB2 pauses every member at every round and Ray restarts it in a fresh process, so
-    compiled functions go to a persistent JAX cache in the run directory (unless the worker already
-    has one): a restarted member reads its compiled training instead of compiling it again.
+    compiled functions go to the persistent JAX cache (contextrl.compile_cache): a restarted member
+    reads its compiled training instead of compiling it again.
     """
     from ray import tune  # optional and slow to import: only the hpo protocol loads it
 
-    if not jax.config.jax_compilation_cache_dir:
-        jax.config.update("jax_compilation_cache_dir", config["compilation_cache"])
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    use_compilation_cache()
     spec = parse_spec(config["spec"])
     env = spec.make_env()
     train_set = spec.expand()[0]["train"].contexts
@@ -357,7 +356,6 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
         tune.with_resources(_trainable, {"cpu": 1}),
         param_space={
             "spec": spec_to_dict(spec),
-            "compilation_cache": str((path / "ray" / "jax-cache").resolve()),
             "member": tune.grid_search(list(range(spec.population))),
             **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
         },

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any
 
+from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import build_report
 from contextrl.experiments.executors import EXECUTORS, run_chunks
 from contextrl.experiments.protocols import expand
@@ -55,6 +56,7 @@ def run_experiment(
 ) -> tuple[RunDir, Summary]:
     """Validate ``spec``, create its run directory, run every trial and write the report."""
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
+    use_compilation_cache()
     spec = prepare(spec)
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
@@ -78,6 +80,7 @@ def resume(
 ) -> tuple[RunDir, Summary]:
     """Run the chunks of an interrupted run that have no results yet (failed ones are retried)."""
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
+    use_compilation_cache()
     run = RunDir(path)
     spec = prepare(run.spec())
     summary = _execute(run, spec, executor, address, max_chunks, progress)
