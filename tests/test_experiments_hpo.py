@@ -26,6 +26,16 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
         parse_spec({"protocol": "hpo", "population": 1})
 
 
+def test_fields_hpo_does_not_use_are_refused_not_ignored():
+    with pytest.raises(SpecError, match=r"seeds: the hpo protocol trains a population .*seeds=5"):
+        parse_spec({"protocol": "hpo", "seeds": 5})
+    with pytest.raises(
+        SpecError, match="batch_size: the hpo protocol trains each member on its own"
+    ):
+        parse_spec({"protocol": "hpo", "batch_size": 4})
+    assert parse_spec({"protocol": "hpo", "seeds": 3, "bootstrap_reps": 500}).bootstrap_reps == 500
+
+
 @pytest.fixture(
     scope="module"
 )  # the suite's costliest setup: made once (make test: --dist loadfile)

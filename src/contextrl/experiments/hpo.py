@@ -71,6 +71,10 @@ class HPOSpec(CommonSpec):
     steps_per_round: int = 20_000
 
     runs_on_ray = True
+    unused_fields = {
+        "seeds": "trains a population from one base seed (set population and seed)",
+        "batch_size": "trains each member on its own Ray worker",
+    }
 
     def runs_text(self) -> str:
         return (

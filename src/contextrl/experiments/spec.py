@@ -227,6 +227,8 @@ class CommonSpec:
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
     runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
+    # Shared fields the protocol does not use, each with why: set off its default, one is refused.
+    unused_fields: ClassVar[dict[str, str]] = {}
     # How the protocol runs when not by training its plan's chunks of trials (the runner's default):
     # ``execute(run, plan, *, executor, address, max_chunks, progress) -> Summary``.
     execute: ClassVar[Callable[..., Any] | None] = None
@@ -239,8 +241,12 @@ class CommonSpec:
         _check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
             _check_int("max_steps", self.max_steps, 1)
+        self._refuse_unused(self.unused_fields)
         if not self.trains_agents:
-            self._refuse_agent_fields()
+            why = "trains no agent on an environment"
+            self._refuse_unused(
+                dict.fromkeys(("env", "agent", "agent_options", "variants", "max_steps"), why)
+            )
             return
         if not isinstance(self.agent_options, Mapping):
             raise SpecError(agent_options_error(self.agent_options))
@@ -269,17 +275,17 @@ class CommonSpec:
                     f"default {field} there); e.g. {_vary_example(type(self), env_id)}"
                 )
 
-    def _refuse_agent_fields(self) -> None:
-        """A protocol without agents refuses an agent, environment or variants it would ignore."""
-        defaults = {f.name: f for f in dataclasses.fields(self)}
-        for name in ("env", "agent", "agent_options", "variants", "max_steps"):
-            field = defaults[name]
+    def _refuse_unused(self, reasons: Mapping[str, str]) -> None:
+        """Refuse each named field set off its default: the protocol would ignore it silently."""
+        fields = {f.name: f for f in dataclasses.fields(self)}
+        for name, why in reasons.items():
+            field = fields[name]
             default = field.default_factory() if callable(field.default_factory) else field.default
             value = getattr(self, name)
             if value != default and not (name == "variants" and tuple(value) == default):
                 raise SpecError(
-                    f"{name}: the {self.protocol} protocol trains no agent on an environment, so "
-                    f"{name}={value!r} does not apply; leave it out"
+                    f"{name}: the {self.protocol} protocol {why}, so {name}={value!r} does not "
+                    "apply; leave it out"
                 )
 
     def agent_entry(self):
