@@ -1,6 +1,9 @@
 """`contextrl run hpo`: PB2 on a local Ray tunes PPO on sampled contexts, reproducibly from the seed;
 the best configuration feeds another protocol through --agent-config."""
 
+import contextlib
+import io
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -42,20 +45,35 @@ def test_fields_hpo_does_not_use_are_refused_not_ignored():
 def pb2_runs(tmp_path_factory):
     """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. Ray's
     workers inherit the suite's JAX compilation cache (conftest.py), so the second run loads the
-    programs the first compiled."""
+    programs the first compiled. The first run shows its progress; what it printed (from Python) is
+    kept in terminal.txt beside it."""
     pytest.importorskip("ray")
     runs = []
     for name in ("first", "second"):
         out = tmp_path_factory.mktemp("hpo") / name
         argv = ["run", "hpo", "--env", "CartPole", "--agent", "ppo", "--seed", "7"]
-        argv += ["--vary", "length=uniform:0.3:0.7", "--out", str(out), "--quiet"]
+        argv += ["--vary", "length=uniform:0.3:0.7", "--out", str(out)]
+        argv += [] if name == "first" else ["--quiet"]
         argv += ["--agent-option", "num_steps=32", "--agent-option", "hidden_sizes=[8]"]
         argv += ["--set", "population=2", "--set", "rounds=3", "--set", "steps_per_round=256"]
         argv += ["--set", "num_train_contexts=4", "--set", "num_test_contexts=5"]
         argv += ["--max-steps", "50", "--episodes", "2"]
-        assert commands_main(argv) == 0
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+            assert commands_main(argv) == 0
+        (out.parent / "terminal.txt").write_text(printed.getvalue())
         runs.append(out)
     return runs
+
+
+def test_terminal_shows_a_line_per_round_and_ray_writes_to_the_run_log(pb2_runs):
+    """Tune's status tables and Ray's log lines go to ray/ray.log in the run, not the terminal."""
+    printed = (pb2_runs[0].parent / "terminal.txt").read_text()
+    for member in (0, 1):
+        for round_ in (1, 2, 3):
+            assert f"hpo: member {member}, round {round_}/3: return " in printed
+    assert "Trial status" not in printed and "╭" not in printed and "INFO" not in printed
+    assert "Exploit" in (pb2_runs[0] / "ray" / "ray.log").read_text()
 
 
 def schedule(out) -> pd.DataFrame:

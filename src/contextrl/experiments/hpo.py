@@ -15,10 +15,13 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import logging
 import random
+import sys
 import tempfile
 import time
-from collections.abc import Mapping
+import warnings
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import jax
@@ -319,6 +322,30 @@ def seeded_pb2(seed: int, **options):
     return SeededPB2()
 
 
+@contextlib.contextmanager
+def _ray_output_to(log: Path) -> Iterator[None]:
+    """Ray's and Tune's own log lines and warnings go to ``log`` in the run directory, not the
+    terminal (which shows one line per member and round instead)."""
+    log.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(log)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    ray_logger = logging.getLogger("ray")
+    saved = ray_logger.handlers[:], ray_logger.propagate
+    ray_logger.handlers[:] = [handler]
+    ray_logger.propagate = False
+
+    def to_log(message, category, filename, lineno, file=None, line=None):
+        handler.stream.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = to_log
+            yield
+    finally:
+        ray_logger.handlers[:], ray_logger.propagate = saved
+        handler.close()
+
+
 def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
     """Run PB2; return the schedule (one row per member and round) and the best member's result."""
     # Ray is optional and slow to import: only the hpo protocol loads it.
@@ -347,6 +374,13 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
                     **{f"hp.{name}": float(result[f"hp/{name}"]) for name in bounds},
                 }
             )
+            if progress:
+                print(
+                    f"hpo: member {member}, round {result['training_iteration']}/{spec.rounds}: "
+                    f"return {float(result['return']):.4g}",
+                    file=sys.stderr,
+                    flush=True,
+                )
 
     scheduler = seeded_pb2(
         spec.seed,
@@ -374,11 +408,12 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
             name="pb2",
             storage_path=str((path / "ray").resolve()),
             stop={"training_iteration": spec.rounds},
-            verbose=1 if progress else 0,
+            verbose=0,  # Tune's status tables: the Schedule callback prints one line instead
             callbacks=[Schedule()],
         ),
     )
-    grid = tuner.fit()
+    with _ray_output_to(path / "ray" / "ray.log"):
+        grid = tuner.fit()
     errors = [str(error) for error in grid.errors]
     if errors:
         raise RuntimeError(f"PB2 members failed: {errors[0]}")
