@@ -103,8 +103,11 @@ def per_context_cis(found: dict) -> list[dict]:
 
 
 def make_run(tmp_path, name: str, data: dict):
-    """A run folder of a 2-seed CartPole PPO spec (``data`` adds to it and overrides)."""
-    base = {"env": "CartPole", "agent": "ppo", "bootstrap_reps": REPS, "seeds": 2}
+    """A run folder of a 2-seed CartPole PPO spec (``data`` adds to it and overrides; hpo trains a
+    population instead of seeds, so its spec has none)."""
+    base = {"env": "CartPole", "agent": "ppo", "bootstrap_reps": REPS}
+    if data.get("protocol") != "hpo":
+        base["seeds"] = 2
     spec = parse_spec({**base, **data})
     return spec, RunDir.create(spec, out=str(tmp_path / name))
 
