@@ -243,10 +243,6 @@ class CommonSpec:
             _check_int("max_steps", self.max_steps, 1)
         self._refuse_unused(self.unused_fields)
         if not self.trains_agents:
-            why = "trains no agent on an environment"
-            self._refuse_unused(
-                dict.fromkeys(("env", "agent", "agent_options", "variants", "max_steps"), why)
-            )
             return
         if not isinstance(self.agent_options, Mapping):
             raise SpecError(agent_options_error(self.agent_options))

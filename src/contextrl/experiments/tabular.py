@@ -283,6 +283,10 @@ class TabularSpec(CommonSpec):
     discount: float = 0.9
 
     trains_agents = False
+    unused_fields = dict.fromkeys(
+        ("env", "agent", "agent_options", "variants", "max_steps"),
+        "trains no agent on an environment",
+    )
     vary_field = None
 
     def validate(self) -> None:
