@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contextrl.experiments import expand, run_experiment
+from contextrl.experiments import executors, expand, run_experiment
 from contextrl.experiments.analyze import run_cells
 from contextrl.experiments.commands import main as commands_main
 from contextrl.experiments.optimality_gap import gap_statistics
@@ -12,9 +12,10 @@ from contextrl.experiments.optimality_gap import gap_statistics
 PPO_OPTIONS = {"total_timesteps": 2048, "num_envs": 4, "num_steps": 64, "hidden_sizes": [16, 16]}
 
 
-def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
+def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path, monkeypatch, capsys):
     """Also: worker processes train exactly what this process trains (trained agents, not a random
-    policy), and the report states the gap, and each seed's return, that gap_statistics computes."""
+    policy), also while they report progress to a bar per chunk on the terminal, and the report
+    states the gap, and each seed's return, that gap_statistics computes."""
     spec = {
         "protocol": "optimality_gap",
         "num_contexts": 2,
@@ -40,10 +41,14 @@ def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
     assert f"= {stats['concat_varying'].gap}." in html
     general = stats["concat_varying"].per_seed()["general"]
     assert len(general) == 2 and "general " + ", ".join(f"{v:.1f}" for v in general) in html
-    spread, summary = run_experiment(
-        spec, out=tmp_path / "spread", executor="processes", progress=False, report=False
-    )
+    monkeypatch.setattr(executors, "_shows_bars", lambda progress: progress)  # as on a terminal
+    capsys.readouterr()
+    spread, summary = run_experiment(spec, out=tmp_path / "spread", executor="processes")
     assert summary.failed == []
+    shown = capsys.readouterr().err
+    for chunk in summary.ran:
+        assert f"chunk {chunk} (" in shown
+    assert "training, recent return" in shown and "evaluating, recent return" in shown
     columns = ["trial", "context_index", "return"]
     pd.testing.assert_frame_equal(
         spread.results()[columns].sort_values(columns[:2], ignore_index=True),
@@ -51,7 +56,8 @@ def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
     )
 
 
-def test_ray_executor_matches_local(tmp_path):
+def test_ray_executor_matches_local(tmp_path, monkeypatch, capsys):
+    """Same rows as here; each chunk's bar (reported by the Ray worker through a queue) is shown."""
     ray = pytest.importorskip("ray")
     spec = {
         "protocol": "visibility",
@@ -66,13 +72,15 @@ def test_ray_executor_matches_local(tmp_path):
     }
     local, _ = run_experiment(spec, out=tmp_path / "local", progress=False, report=False)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    monkeypatch.setattr(executors, "_shows_bars", lambda progress: progress)  # as on a terminal
+    capsys.readouterr()
     try:
-        remote, summary = run_experiment(
-            spec, out=tmp_path / "ray", executor="ray", progress=False, report=False
-        )
+        remote, summary = run_experiment(spec, out=tmp_path / "ray", executor="ray", report=False)
     finally:
         ray.shutdown()
     assert sorted(summary.ran) == [0, 1, 2] and summary.failed == []
+    shown = capsys.readouterr().err
+    assert all(f"chunk {chunk} (1 trials, hidden)" in shown for chunk in range(3)), shown
     columns = ["trial", "context_index", "return"]
     pd.testing.assert_frame_equal(remote.results()[columns], local.results()[columns])
 

@@ -67,13 +67,15 @@ def pb2_runs(tmp_path_factory):
 
 
 def test_terminal_shows_a_line_per_round_and_ray_writes_to_the_run_log(pb2_runs):
-    """Tune's status tables and Ray's log lines go to ray/ray.log in the run, not the terminal."""
+    """Tune's status tables and Ray's log lines, from starting the local Ray instance on, go to
+    ray/ray.log in the run, not the terminal."""
     printed = (pb2_runs[0].parent / "terminal.txt").read_text()
     for member in (0, 1):
         for round_ in (1, 2, 3):
             assert f"hpo: member {member}, round {round_}/3: return " in printed
     assert "Trial status" not in printed and "╭" not in printed and "INFO" not in printed
-    assert "Exploit" in (pb2_runs[0] / "ray" / "ray.log").read_text()
+    logged = (pb2_runs[0] / "ray" / "ray.log").read_text()
+    assert "Started a local Ray instance" in logged and "Exploit" in logged
 
 
 def schedule(out) -> pd.DataFrame:

@@ -11,7 +11,7 @@ import pytest
 
 from contextrl.agents.common import Progress
 from contextrl.experiments import RunDir, expand, report, resume, run_experiment
-from contextrl.experiments.executors import ChunkBar, run_local
+from contextrl.experiments.executors import ChunkBar, ProgressLines, run_local
 from contextrl.experiments.runs import atomic_write
 from contextrl.experiments.trials import run_chunk
 
@@ -209,20 +209,22 @@ def test_existing_run_directory_is_not_overwritten(tmp_path):
 
 
 def test_chunk_bar_reads_the_agents_progress_lines_into_its_phase(capsys):
-    """The bar takes the agents' progress lines (steps done / total, recent return) as its phase
-    and passes any other output on."""
+    """The bar takes the agents' progress lines (steps done / total, recent return) as its phase;
+    any other output passes on."""
     shown = io.StringIO()
     bar = ChunkBar("chunk 0 (2 trials, hidden)", shown, disable=False)
     assert "compiling" in shown.getvalue()
     progress = Progress("PPO", 200, every=1)
-    with contextlib.redirect_stdout(bar):
+    lines = ProgressLines(bar.update)
+    with contextlib.redirect_stdout(lines):
         progress(0, 100, np.array([12.0]))
         progress(1, 150, np.array([20.5]))
         print("an agent's warning")
     assert (bar.bar.n, bar.bar.total) == (150, 200)
     assert "training, recent return 20.50" in shown.getvalue()
-    with contextlib.redirect_stdout(bar):
+    with contextlib.redirect_stdout(lines):
         progress(2, 200, np.array([30.0]))
     assert "evaluating, recent return 30.00" in shown.getvalue()
+    lines.close()
     bar.close()
     assert capsys.readouterr().out == "an agent's warning\n"

@@ -171,8 +171,8 @@ def _refuse_spec_options(args: argparse.Namespace) -> None:
         )
         raise SpecError(
             f"--resume {args.resume} continues the run as its spec.yaml says; {flags} cannot "
-            "apply (only --executor, --address, --max-chunks, --quiet, --log do). Start a new run "
-            "to change the spec"
+            "apply (only --executor, --address, --max-chunks, --quiet, --verbose, --log do). Start a "
+            "new run to change the spec"
         )
 
 
@@ -265,7 +265,13 @@ def run_command(args: argparse.Namespace) -> int:
             spec = prepare(spec_from_args(args, notices))
             for notice in notices:
                 print(notice, file=sys.stderr)
-        connect(args.executor, args.address, on_ray=spec.runs_on_ray, join=not args.dry_run)
+        ray_started = connect(
+            args.executor,
+            args.address,
+            on_ray=spec.runs_on_ray,
+            join=not args.dry_run,
+            verbose=args.verbose,
+        )
         if args.dry_run:  # checked as the run is up to here; then nothing is created
             _check_new_run(spec, args)
             print(describe_plan(spec, calibrate_time=not args.no_calibration, root=args.root))
@@ -275,6 +281,10 @@ def run_command(args: argparse.Namespace) -> int:
             if progress:
                 print(f"run directory: {run.path}", file=sys.stderr, flush=True)
         interrupt.run_path = run.path
+        if ray_started:
+            (run.path / "ray").mkdir(exist_ok=True)
+            with open(run.path / "ray" / "ray.log", "a") as log:
+                log.write(ray_started)
         logger = None
         if args.log == "tensorboard":
             logger = TensorBoardLog(run).start()
@@ -286,6 +296,7 @@ def run_command(args: argparse.Namespace) -> int:
             address=args.address,
             max_chunks=args.max_chunks,
             progress=progress,
+            verbose=args.verbose,
         )
         if logger is not None:
             logger.stop()
@@ -370,7 +381,13 @@ def add_run(subparsers) -> None:
     parser.add_argument(
         "--quiet",
         action="store_true",
-        help="no progress lines, and no bar for the chunk in training",
+        help="no progress lines, and no bars for the chunks in training",
+    )
+    parser.add_argument(
+        "--verbose",
+        action="store_true",
+        help="show Ray's and Tune's own output (start-up lines, Tune's status tables) instead of "
+        "writing it to ray/ray.log in the run directory",
     )
     parser.add_argument(
         "--dry-run",

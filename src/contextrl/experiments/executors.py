@@ -14,13 +14,18 @@ import concurrent.futures
 import contextlib
 import dataclasses
 import functools
+import io
+import logging
 import multiprocessing
 import os
+import queue
 import re
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Iterator
+from typing import TextIO
 
 from tqdm import tqdm
 
@@ -32,6 +37,7 @@ from contextrl.experiments.trials import run_chunk
 from contextrl.xla_flags import xla_cpu_workaround
 
 EXECUTORS = ("local", "processes", "ray")
+BAR_REFRESH_SECONDS = 0.5  # how often worker executors redraw the bars of the chunks they run
 
 
 class Progress:
@@ -50,11 +56,10 @@ class Progress:
         eta = elapsed / self.done * (self.total - self.done)
         trials = len(self.plan.chunks[chunk])
         status = "ok" if ok else "FAILED"
-        print(
+        tqdm.write(  # above any chunk bars on the terminal
             f"[{self.done}/{self.total} chunks] chunk {chunk} ({trials} trials) {status}; "
             f"{self.failed} failed; elapsed {elapsed:.0f}s, eta {eta:.0f}s",
             file=self.stream,
-            flush=True,
         )
 
 
@@ -62,24 +67,14 @@ class Progress:
 PROGRESS_LINE = re.compile(r"step\s+([\d,]+)/([\d,]+)\s+(\S+) steps/s\s+recent return\s+(\S+)")
 
 
-class ChunkBar:
-    """A bar for the chunk this process trains: its phase (compiling, training with steps done /
-    total and the first trial's recent return, evaluating). The chunk runs with the agents'
-    progress lines on (``progress_every`` 1); standing in for stdout, the bar reads them instead of
-    printing them and passes any other output on. Shown on a terminal only, as tqdm's bars are."""
+class ProgressLines:
+    """A stand-in for stdout while a chunk trains with the agents' progress lines on
+    (``progress_every`` 1): each progress line becomes ``on_progress(done, total, recent_return)``;
+    any other output passes on to the real stdout."""
 
-    def __init__(self, description: str, stream=None, disable: bool | None = None):
+    def __init__(self, on_progress: Callable[[int, int, str], None]):
         self.stdout = sys.stdout
-        self.bar = tqdm(
-            desc=description,
-            total=None,
-            unit="step",
-            unit_scale=True,
-            file=stream or sys.stderr,
-            disable=disable,
-            leave=False,
-            postfix="compiling",
-        )
+        self.on_progress = on_progress
         self._pending = ""
 
     def write(self, text: str) -> int:
@@ -91,11 +86,7 @@ class ChunkBar:
                 self.stdout.write(line + "\n")
                 continue
             done, total = (int(group.replace(",", "")) for group in match.group(1, 2))
-            if self.bar.total is None:  # training has begun: its rate starts now, not at compiling
-                self.bar.reset(total=total)
-            self.bar.update(done - self.bar.n)
-            phase = "evaluating" if done >= total else "training"
-            self.bar.set_postfix_str(f"{phase}, recent return {match.group(4)}")
+            self.on_progress(done, total, match.group(4))
         return len(text)
 
     def flush(self) -> None:
@@ -104,33 +95,134 @@ class ChunkBar:
     def close(self) -> None:
         if self._pending:
             self.write("\n")
+
+
+class ChunkBar:
+    """A bar for one chunk: its phase (compiling, training with steps done / total and the first
+    trial's recent return, evaluating). Shown on a terminal only, as tqdm's bars are; ``position``
+    stacks the bars of chunks that train at once in other processes."""
+
+    def __init__(
+        self,
+        description: str,
+        stream=None,
+        disable: bool | None = None,
+        position: int | None = None,
+    ):
+        self.bar = tqdm(
+            desc=description,
+            total=None,
+            unit="step",
+            unit_scale=True,
+            file=stream or sys.stderr,
+            disable=disable,
+            leave=False,
+            position=position,
+            postfix="compiling",
+        )
+
+    def update(self, done: int, total: int, recent_return: str) -> None:
+        if self.bar.total is None:  # training has begun: its rate starts now, not at compiling
+            self.bar.reset(total=total)
+        self.bar.update(done - self.bar.n)
+        phase = "evaluating" if done >= total else "training"
+        self.bar.set_postfix_str(f"{phase}, recent return {recent_return}")
+
+    def close(self) -> None:
         self.bar.close()
 
 
-def _chunk_with_bar(chunk_runner: Callable, plan: Plan, chunk: int):
-    """Run ``chunk`` under a :class:`ChunkBar` (on a terminal; elsewhere just run it). Its results
-    and checkpoints are those of the spec as given: the progress lines change no value, and the
-    saved config is the spec's own."""
+def _describe(plan: Plan, chunk: int) -> str:
+    trials = plan.chunks[chunk]
+    return f"chunk {chunk} ({len(trials)} trials, {plan.trials[trials[0]].variant})"
+
+
+def _watched_chunk(chunk_runner: Callable, plan: Plan, chunk: int, on_progress: Callable):
+    """Run ``chunk`` with the agents' progress lines on, each one passed to ``on_progress(done,
+    total, recent_return)``. Its results and checkpoints are those of the spec as given: the
+    progress lines change no value, and the saved config is the spec's own."""
     spec = plan.spec
     trials = plan.chunks[chunk]
-    variant = plan.trials[trials[0]].variant
-    bar = ChunkBar(f"chunk {chunk} ({len(trials)} trials, {variant})")
+    watched = plan
+    if spec.agent_entry().trained:
+        options = {**spec.agent_options, "progress_every": 1}
+        watched = dataclasses.replace(plan, spec=dataclasses.replace(spec, agent_options=options))
+    lines = ProgressLines(on_progress)
     try:
-        if bar.bar.disable:
-            return chunk_runner(plan, trials)
-        watched = plan
-        if spec.agent_entry().trained:
-            options = {**spec.agent_options, "progress_every": 1}
-            watched = dataclasses.replace(
-                plan, spec=dataclasses.replace(spec, agent_options=options)
-            )
-        with contextlib.redirect_stdout(bar):
+        with contextlib.redirect_stdout(lines):
             result = chunk_runner(watched, trials)
     finally:
-        bar.close()
+        lines.close()
     if result.checkpoint:
-        result.checkpoint["config"] = spec.agent_config(variant)
+        result.checkpoint["config"] = spec.agent_config(plan.trials[trials[0]].variant)
     return result
+
+
+def _chunk_with_bar(chunk_runner: Callable, plan: Plan, chunk: int):
+    """Run ``chunk`` in this process under a :class:`ChunkBar` (on a terminal; elsewhere just run
+    it)."""
+    bar = ChunkBar(_describe(plan, chunk))
+    try:
+        if bar.bar.disable:
+            return chunk_runner(plan, plan.chunks[chunk])
+        return _watched_chunk(chunk_runner, plan, chunk, bar.update)
+    finally:
+        bar.close()
+
+
+class ChunkBars:
+    """The bars of chunks that train in worker processes (``processes``, ``ray``): each worker puts
+    ``(chunk, done, total, recent_return)`` on a queue (``done`` None: compiling has begun) and the
+    driver, between waits for finished chunks, draws them here, one bar per running chunk. Without
+    a queue (``updates`` None: no bars) it draws nothing."""
+
+    def __init__(self, plan: Plan, updates):
+        self.plan, self.updates = plan, updates
+        self.bars: dict[int, ChunkBar] = {}
+        self.positions: dict[int, int] = {}
+
+    def drain(self) -> None:
+        while self.updates is not None:
+            try:
+                chunk, done, total, recent_return = self.updates.get_nowait()
+            except queue.Empty:
+                return
+            if chunk not in self.bars:
+                position = min(set(range(len(self.bars) + 1)) - set(self.positions.values()))
+                self.positions[chunk] = position
+                self.bars[chunk] = ChunkBar(
+                    _describe(self.plan, chunk), disable=False, position=position
+                )
+            if done is not None:
+                self.bars[chunk].update(done, total, recent_return)
+
+    def finish(self, chunk: int) -> None:
+        self.drain()
+        if chunk in self.bars:
+            self.bars.pop(chunk).close()
+            del self.positions[chunk]
+
+    def close(self) -> None:
+        for chunk in list(self.bars):
+            self.finish(chunk)
+
+
+def _as_finished(pending: dict, wait: Callable, fetcher: Callable, bars: ChunkBars):
+    """Yield ``(chunk, fetch)`` for each of the ``pending`` workers (handle -> chunk) as ``wait``
+    returns it finished (``wait(handles)``: the finished ones, or none after a short timeout), with
+    ``fetcher(handle)`` the call that returns its result or raises; the bars are redrawn between."""
+    while pending:
+        done = wait(list(pending))
+        bars.drain()
+        for handle in done:
+            chunk = pending.pop(handle)
+            bars.finish(chunk)
+            yield chunk, fetcher(handle)
+
+
+def _shows_bars(progress: bool) -> bool:
+    """Whether worker executors draw chunk bars: with progress, on a terminal (as tqdm decides)."""
+    return progress and sys.stderr.isatty()
 
 
 def _pending(run: RunDir, plan: Plan, max_chunks: int | None) -> tuple[list[int], list[int]]:
@@ -229,19 +321,63 @@ def run_processes(
     def finished(todo: list[int]):
         count = max(1, min(workers or _cores(), len(todo)))
         context = multiprocessing.get_context("spawn")  # a fresh JAX in each worker, never a fork
-        with concurrent.futures.ProcessPoolExecutor(count, mp_context=context) as pool:
-            pending = {pool.submit(_remote_chunk, spec_data, chunk): chunk for chunk in todo}
-            for future in concurrent.futures.as_completed(pending):
-                yield pending[future], future.result
+        with contextlib.ExitStack() as stack:
+            updates = None
+            if _shows_bars(progress):
+                updates = stack.enter_context(context.Manager()).Queue()
+            bars = stack.enter_context(contextlib.closing(ChunkBars(plan, updates)))
+            pool = stack.enter_context(
+                concurrent.futures.ProcessPoolExecutor(count, mp_context=context)
+            )
+            pending = {pool.submit(_remote_chunk, spec_data, c, updates): c for c in todo}
+
+            def wait(futures):
+                return concurrent.futures.wait(
+                    futures, timeout=BAR_REFRESH_SECONDS, return_when="FIRST_COMPLETED"
+                )[0]
+
+            yield from _as_finished(pending, wait, lambda future: future.result, bars)
 
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
-def connect(executor: str, address: str | None, on_ray: bool = False, join: bool = True) -> None:
+@contextlib.contextmanager
+def ray_output_to(stream: TextIO) -> Iterator[None]:
+    """Ray's and Tune's own log lines and Python's warnings go to ``stream`` (the run's
+    ``ray/ray.log``), not the terminal, which shows contextrl's own progress instead."""
+    handler = logging.StreamHandler(stream)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    ray_logger = logging.getLogger("ray")
+    saved = ray_logger.handlers[:], ray_logger.propagate
+    ray_logger.handlers[:] = [handler]
+    ray_logger.propagate = False
+
+    def to_log(message, category, filename, lineno, file=None, line=None):
+        stream.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = to_log
+            yield
+    finally:
+        ray_logger.handlers[:], ray_logger.propagate = saved
+        handler.flush()
+
+
+def connect(
+    executor: str,
+    address: str | None,
+    on_ray: bool = False,
+    join: bool = True,
+    verbose: bool = False,
+) -> str:
     """Check the executor before a run directory exists: for ``ray`` (or a protocol that runs on Ray
     itself, ``on_ray``), join (or start) the cluster now, so a wrong ``--address`` is a one-line
     error and leaves nothing half made. ``join`` off (a dry run, planned before a cluster may be
-    up): the executor and ``address`` are checked, no cluster is joined or started."""
+    up): the executor and ``address`` are checked, no cluster is joined or started.
+
+    Returns what Ray logged while starting, for the run's ``ray/ray.log`` (with ``verbose`` it is
+    shown on the terminal instead and "" is returned)."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
     if executor != "ray" and not on_ray:
@@ -249,15 +385,17 @@ def connect(executor: str, address: str | None, on_ray: bool = False, join: bool
             raise SpecError(
                 f"--address {address}: only --executor ray and the hpo protocol use a Ray cluster"
             )
-        return
+        return ""
     if not join:
-        return
+        return ""
     import ray  # optional and slow to import: only a Ray run loads it
 
     if ray.is_initialized():
-        return
+        return ""
+    started = io.StringIO()
     try:
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        with contextlib.nullcontext() if verbose else ray_output_to(started):
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
     except ConnectionError as error:
         where = f"--address {address}" if address else "a local Ray cluster"
         reason = str(error).split(". ")[0]
@@ -265,14 +403,23 @@ def connect(executor: str, address: str | None, on_ray: bool = False, join: bool
             f"{where}: {reason}; start a cluster with `ray start --head`, or leave out --address "
             "to start a local one"
         ) from None
+    return started.getvalue()
 
 
-def _remote_chunk(spec_data: dict, chunk: int):
-    """What a worker (Ray's or a local process) runs: rebuild the plan from the spec, run one chunk."""
+def _remote_chunk(spec_data: dict, chunk: int, updates=None):
+    """What a worker (Ray's or a local process) runs: rebuild the plan from the spec, run one chunk;
+    with a queue of ``updates``, report its progress there (see :class:`ChunkBars`)."""
     xla_cpu_workaround()  # a fresh worker: before its first JAX computation
     use_compilation_cache()  # workers load what another worker or an earlier run compiled
     plan = expand(parse_spec(spec_data))
-    return run_chunk(plan, plan.chunks[chunk])
+    if updates is None:
+        return run_chunk(plan, plan.chunks[chunk])
+    updates.put((chunk, None, None, None))
+
+    def report(done: int, total: int, recent_return: str) -> None:
+        updates.put((chunk, done, total, recent_return))
+
+    return _watched_chunk(run_chunk, plan, chunk, report)
 
 
 def run_ray(
@@ -294,10 +441,22 @@ def run_ray(
     spec_data = spec_to_dict(plan.spec)
 
     def finished(todo: list[int]):
-        pending = {remote.remote(spec_data, chunk): chunk for chunk in todo}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            yield pending.pop(done[0]), functools.partial(ray.get, done[0])
+        updates = None
+        if _shows_bars(progress):
+            from ray.util.queue import Queue
+
+            updates = Queue(actor_options={"num_cpus": 0})
+        pending = {remote.remote(spec_data, chunk, updates): chunk for chunk in todo}
+
+        def wait(refs):
+            return ray.wait(refs, num_returns=1, timeout=BAR_REFRESH_SECONDS)[0]
+
+        with contextlib.closing(ChunkBars(plan, updates)) as bars:
+            yield from _as_finished(
+                pending, wait, lambda ref: functools.partial(ray.get, ref), bars
+            )
+        if updates is not None:
+            updates.shutdown()
 
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 

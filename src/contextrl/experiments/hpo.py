@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import logging
 import random
 import sys
 import tempfile
 import time
-import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import jax
@@ -34,6 +32,7 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
+from contextrl.experiments.executors import ray_output_to
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
@@ -159,12 +158,12 @@ class HPOSpec(CommonSpec):
             "seconds": round(sum(run.timings().values()), 1),
         }
 
-    def execute(self, run, plan, *, executor, address, max_chunks, progress):
+    def execute(self, run, plan, *, executor, address, max_chunks, progress, verbose):
         """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
         if run.finished():
             return Summary([], [0], [], [], 0.0)
         start = time.perf_counter()
-        schedule, best = _tune(self, run.path, address, progress)
+        schedule, best = _tune(self, run.path, address, progress, verbose)
         training, evaluations = _evaluate_best(self, plan, best)
         hyper = {name: float(best["config"][name]) for name in self.bounds()}
         best_options = {**self.agent_options, **hyper}
@@ -322,39 +321,16 @@ def seeded_pb2(seed: int, **options):
     return SeededPB2()
 
 
-@contextlib.contextmanager
-def _ray_output_to(log: Path) -> Iterator[None]:
-    """Ray's and Tune's own log lines and warnings go to ``log`` in the run directory, not the
-    terminal (which shows one line per member and round instead)."""
-    log.parent.mkdir(parents=True, exist_ok=True)
-    handler = logging.FileHandler(log)
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    ray_logger = logging.getLogger("ray")
-    saved = ray_logger.handlers[:], ray_logger.propagate
-    ray_logger.handlers[:] = [handler]
-    ray_logger.propagate = False
+def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbose: bool):
+    """Run PB2; return the schedule (one row per member and round) and the best member's result.
 
-    def to_log(message, category, filename, lineno, file=None, line=None):
-        handler.stream.write(warnings.formatwarning(message, category, filename, lineno, line))
-
-    try:
-        with warnings.catch_warnings():
-            warnings.showwarning = to_log
-            yield
-    finally:
-        ray_logger.handlers[:], ray_logger.propagate = saved
-        handler.close()
-
-
-def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
-    """Run PB2; return the schedule (one row per member and round) and the best member's result."""
+    Ray's and Tune's own output goes to ``ray/ray.log`` in the run; ``verbose`` shows it (and Tune's
+    status tables) on the terminal instead."""
     # Ray is optional and slow to import: only the hpo protocol loads it.
     import ray
     from ray import tune
     from ray.tune.search.basic_variant import BasicVariantGenerator
 
-    if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
     bounds = spec.bounds()
     schedule_rows: list[dict] = []
 
@@ -390,29 +366,33 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool):
         quantile_fraction=0.5 if spec.population < 4 else 0.25,
         log_config=False,
     )
-    tuner = tune.Tuner(
-        tune.with_resources(_trainable, {"cpu": 1}),
-        param_space={
-            "spec": spec_to_dict(spec),
-            "member": tune.grid_search(list(range(spec.population))),
-            **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
-        },
-        tune_config=tune.TuneConfig(
-            scheduler=scheduler,
-            search_alg=BasicVariantGenerator(random_state=spec.seed),
-            metric="return",
-            mode="max",
-            num_samples=1,  # the grid over members makes the population
-        ),
-        run_config=tune.RunConfig(
-            name="pb2",
-            storage_path=str((path / "ray").resolve()),
-            stop={"training_iteration": spec.rounds},
-            verbose=0,  # Tune's status tables: the Schedule callback prints one line instead
-            callbacks=[Schedule()],
-        ),
-    )
-    with _ray_output_to(path / "ray" / "ray.log"):
+    log = path / "ray" / "ray.log"
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with open(log, "a") as stream, contextlib.nullcontext() if verbose else ray_output_to(stream):
+        if not ray.is_initialized():
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        tuner = tune.Tuner(
+            tune.with_resources(_trainable, {"cpu": 1}),
+            param_space={
+                "spec": spec_to_dict(spec),
+                "member": tune.grid_search(list(range(spec.population))),
+                **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
+            },
+            tune_config=tune.TuneConfig(
+                scheduler=scheduler,
+                search_alg=BasicVariantGenerator(random_state=spec.seed),
+                metric="return",
+                mode="max",
+                num_samples=1,  # the grid over members makes the population
+            ),
+            run_config=tune.RunConfig(
+                name="pb2",
+                storage_path=str((path / "ray").resolve()),
+                stop={"training_iteration": spec.rounds},
+                verbose=1 if verbose else 0,  # else the Schedule callback prints a line per round
+                callbacks=[Schedule()],
+            ),
+        )
         grid = tuner.fit()
     errors = [str(error) for error in grid.errors]
     if errors:

@@ -25,10 +25,10 @@ def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
 
 
 def _execute(
-    run: RunDir, spec: CommonSpec, executor: str, address, max_chunks, progress
+    run: RunDir, spec: CommonSpec, executor: str, address, max_chunks, progress, verbose
 ) -> Summary:
-    """Run what is unfinished in ``run``: the protocol's own ``execute`` where it has one, else the
-    plan's chunks of trials on ``executor``."""
+    """Run what is unfinished in ``run``: the protocol's own ``execute`` where it has one (``verbose``:
+    it shows Ray's own output), else the plan's chunks of trials on ``executor``."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
     plan = expand(spec)
@@ -39,7 +39,7 @@ def _execute(
         "progress": progress,
     }
     if spec.execute is not None:
-        return spec.execute(run, plan, **options)
+        return spec.execute(run, plan, **options, verbose=verbose)
     return run_chunks(run, plan, **options, save_params=spec.agent_entry().trained)
 
 
@@ -52,9 +52,11 @@ def run_experiment(
     address: str | None = None,
     max_chunks: int | None = None,
     progress: bool = True,
+    verbose: bool = False,
     report: bool = True,
 ) -> tuple[RunDir, Summary]:
-    """Validate ``spec``, create its run directory, run every trial and write the report."""
+    """Validate ``spec``, create its run directory, run every trial and write the report
+    (``verbose``: as for :func:`resume`)."""
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     use_compilation_cache()
     spec = prepare(spec)
@@ -63,7 +65,7 @@ def run_experiment(
     run = RunDir.create(spec, root=root, out=None if out is None else str(out))
     if progress:
         print(f"run directory: {run.path}", file=sys.stderr, flush=True)
-    summary = _execute(run, spec, executor, address, max_chunks, progress)
+    summary = _execute(run, spec, executor, address, max_chunks, progress, verbose)
     if report:
         build_report(run)
     return run, summary
@@ -76,14 +78,16 @@ def resume(
     address: str | None = None,
     max_chunks: int | None = None,
     progress: bool = True,
+    verbose: bool = False,
     report: bool = True,
 ) -> tuple[RunDir, Summary]:
-    """Run the chunks of an interrupted run that have no results yet (failed ones are retried)."""
+    """Run the chunks of an interrupted run that have no results yet (failed ones are retried);
+    ``verbose``: Ray's and Tune's own output on the terminal (hpo), not in the run's ray/ray.log."""
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     use_compilation_cache()
     run = RunDir(path)
     spec = prepare(run.spec())
-    summary = _execute(run, spec, executor, address, max_chunks, progress)
+    summary = _execute(run, spec, executor, address, max_chunks, progress, verbose)
     if report:
         build_report(run)
     return run, summary

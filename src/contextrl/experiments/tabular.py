@@ -302,7 +302,7 @@ class TabularSpec(CommonSpec):
         if not self.discount < 1.0:
             raise SpecError(f"discount: must be below 1, got {self.discount!r}")
 
-    def execute(self, run, plan, *, executor, address, max_chunks, progress):
+    def execute(self, run, plan, *, executor, address, max_chunks, progress, verbose):
         """Solve every cMDP here (seconds; no executor needed) unless already done."""
         if run.finished():
             return Summary([], [0], [], [], 0.0)
