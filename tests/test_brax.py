@@ -9,6 +9,7 @@ moved off its default, and CARL's failure cases). Hopper's program is its goal v
 carries brax's own reward in its state, so one program shows both parity and the goal reward.
 """
 
+import copy
 import dataclasses
 import functools
 import importlib.util
@@ -299,6 +300,34 @@ def test_default_system_is_brax_system(name, backend):
         np.testing.assert_array_equal(ours, theirs, err_msg=where)
         same_kind = ours.dtype == theirs.dtype or np.issubdtype(theirs.dtype, np.integer)
         assert same_kind, f"{where}: {ours.dtype} vs {theirs.dtype}"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_mass_derived_constants_are_mujocos_for_the_contexts_masses(name):
+    """MuJoCo derives each body's and joint's inverse weight (how soft its contacts and joint limits
+    are) and the subtree masses from the masses when it loads a model (``mj_setConst``). With every
+    mass feature moved, our system holds what ``mj_setConst`` computes for those masses (to float32
+    rounding), on MJX and in the generalized pipeline's copies, and these differ from the stock ones."""
+    import mujoco
+
+    env = getattr(family, name)()
+    system = env.system(
+        env.context(**{n: moved_value(env.context_space.features[n]) for n in env.masses})
+    )
+    model = copy.deepcopy(env.stock_system.mj_model)
+    model.body_mass[:], model.body_inertia[:] = system.body_mass, system.body_inertia
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    for field in ("body_invweight0", "dof_invweight0", "body_subtreemass"):
+        np.testing.assert_allclose(
+            getattr(system, field), getattr(model, field), rtol=1e-4, err_msg=field
+        )
+    assert not np.allclose(system.body_invweight0, env.stock_system.body_invweight0)
+    generalized = getattr(family, name)(backend="generalized")
+    system = generalized.system(
+        generalized.context(**{n: moved_value(env.context_space.features[n]) for n in env.masses})
+    )
+    np.testing.assert_allclose(system.link.invweight, model.body_invweight0[1:, 0], rtol=1e-4)
+    np.testing.assert_allclose(system.dof.invweight, model.dof_invweight0, rtol=1e-4)
 
 
 def test_dataclass_replace_keeps_the_loaded_model():

@@ -32,6 +32,7 @@ import numpy as np
 from contextrl.context.features import ContextBase, context_type, feature
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
+from contextrl.envs.brax.mass import mass_constants, pose_tables
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -41,6 +42,8 @@ MAXIMAL_COORDINATE_BACKENDS = ("spring", "positional")
 # Joint damping acts in the pipelines that integrate joint-space dynamics; joint springs in MJX only.
 JOINT_DAMPING_BACKENDS = ("mjx", "generalized")
 JOINT_STIFFNESS_BACKENDS = ("mjx",)
+# The pipelines that read the mass-derived inverse weights (contact and joint-limit softness).
+INVWEIGHT_BACKENDS = ("mjx", "generalized")
 
 # CARL's 16 compass codes for the goal direction, clockwise from north (+y); east is +x, "forward".
 COMPASS = (
@@ -256,18 +259,32 @@ class BraxEnv(Env):
         return stock.tree_replace(changes)
 
     def _mass_changes(self, stock, values) -> dict[str, jax.Array]:
-        """Masses set per link, each body's inertia scaled by the same ratio (density kept)."""
+        """Masses set per link, each body's inertia scaled by the same ratio (density kept); on the
+        pipelines that read them (MJX, generalized), the constants MuJoCo derives from the masses are
+        recomputed (``mass.py``), and are the stock ones where the masses are."""
         # MuJoCo's body 0 is the world; brax's links start at body 1.
         body_ids = np.array([stock.link_names.index(link) + 1 for link, _ in self.masses.values()])
         stock_mass = jnp.asarray(stock.body_mass)
         mass = stock_mass.at[body_ids].set(jnp.stack([values[n] for n in self.masses]))
         ratio = jnp.where(stock_mass > 0, mass / jnp.where(stock_mass > 0, stock_mass, 1.0), 1.0)
-        return {
+        inertia = jnp.asarray(stock.body_inertia) * ratio[:, None]
+        changes = {
             "body_mass": mass,
-            "body_inertia": jnp.asarray(stock.body_inertia) * ratio[:, None],
+            "body_inertia": inertia,
             "link.inertia.mass": mass[1:],
             "link.inertia.i": jnp.asarray(stock.link.inertia.i) * ratio[1:, None, None],
         }
+        if self.backend in INVWEIGHT_BACKENDS:
+            stock_masses = jnp.all(mass == stock_mass)
+            derived = mass_constants(_pose_tables(self.brax_name, self.fluid), mass, inertia)
+            derived = {
+                name: jnp.where(stock_masses, jnp.asarray(getattr(stock, name)), value)
+                for name, value in derived.items()
+            }
+            changes.update(derived)
+            changes["link.invweight"] = derived["body_invweight0"][1:, 0]
+            changes["dof.invweight"] = derived["dof_invweight0"]
+        return changes
 
     def task_system_changes(self, stock, values) -> dict[str, jax.Array]:
         """Changes of this task only (Pusher's goal body); none by default."""
@@ -342,6 +359,12 @@ class BraxEnv(Env):
         """The goal variant's target (x, y) in the world."""
         angle = compass_angle(self.goal_directions, context.target_direction)
         return context.target_distance * jnp.stack([jnp.cos(angle), jnp.sin(angle)])
+
+
+@functools.cache
+def _pose_tables(brax_name: str, fluid: bool):
+    """The mass-independent tables of a task's model at its initial pose (``mass.py``), made once."""
+    return pose_tables(load_brax_env(brax_name, "mjx", fluid).sys.mj_model)
 
 
 @functools.cache
