@@ -330,6 +330,43 @@ def test_mass_derived_constants_are_mujocos_for_the_contexts_masses(name):
     np.testing.assert_allclose(system.dof.invweight, model.dof_invweight0, rtol=1e-4)
 
 
+@pytest.mark.parametrize("backend", ["spring", "positional"])
+@pytest.mark.parametrize("name", NAMES)
+def test_masses_scale_what_the_maximal_coordinate_pipelines_use(name, backend):
+    """brax's spring and positional pipelines use mass**(1 - s) and inertia**(1 - s_i), with s and s_i
+    the model's spring scales. A mass feature moved to r × its default scales these effective values
+    of its link, and only its link's, by r (where the exponent is above 0: the inertias of most tasks
+    are fixed at 1); a task whose exponents are both 0 (Ant, Hopper, Pusher), where no mass can act,
+    declares no mass feature on these pipelines."""
+    env = getattr(family, name)(backend=backend)
+    stock = env.stock_system
+    exponents = 1 - float(stock.spring_mass_scale), 1 - float(stock.spring_inertia_scale)
+
+    def effective(system):
+        inertia = np.diagonal(np.asarray(system.link.inertia.i), axis1=1, axis2=2)
+        return np.asarray(system.link.inertia.mass) ** exponents[0], inertia ** exponents[1]
+
+    declared = [n for n in env.context_space.names if n in env.masses]
+    if exponents == (0.0, 0.0):
+        assert declared == [] and name in {"Ant", "Hopper", "Pusher"}
+        return
+    assert declared == list(env.masses)
+    for feature_name, (link, default) in env.masses.items():
+        value = moved_value(env.context_space.features[feature_name])
+        expected = np.ones(len(stock.link_names))
+        expected[stock.link_names.index(link)] = value / default
+        moved, original = (
+            effective(env.system(env.context(**{feature_name: value}))),
+            effective(stock),
+        )
+        np.testing.assert_allclose(
+            moved[0] / original[0], expected ** (exponents[0] > 0), rtol=1e-5
+        )
+        np.testing.assert_allclose(
+            moved[1] / original[1], expected[:, None] ** (exponents[1] > 0) * np.ones(3), rtol=1e-4
+        )
+
+
 def test_dataclass_replace_keeps_the_loaded_model():
     env = family.Hopper()
     shorter = dataclasses.replace(env, max_steps=10)

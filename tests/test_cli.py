@@ -37,6 +37,16 @@ def test_describe_prints_the_feature_table(capsys):
     assert "| g | 10 |" in capsys.readouterr().out
 
 
+def test_describe_lists_the_features_that_act_in_a_brax_pipeline(capsys):
+    """Hopper's masses cannot act on brax's spring pipeline (its model fixes the effective masses)."""
+    pytest.importorskip("brax")
+    assert main(["describe", "BraxHopper"]) == 0
+    assert "mass_torso" in capsys.readouterr().out
+    assert main(["describe", "BraxHopper", "--backend", "spring"]) == 0
+    out = capsys.readouterr().out
+    assert "mass_" not in out and "elasticity" in out
+
+
 def test_docs_are_generated_from_the_declarations(tmp_path, capsys):
     out = tmp_path / "env.md"
     assert main(["docs", "--out", str(out)]) == 0
@@ -74,6 +84,7 @@ def test_render_writes_a_grid_animation(tmp_path, capsys):
     ("argv", "message"),
     [
         (["describe", "CartPol"], "Did you mean"),
+        (["describe", "CartPole", "--backend", "spring"], "only the Brax environments have one"),
         (["render", "CartPole", "--context", "length=9"], "outside its bounds"),
         (["render", "CartPole", "--context", "lenght=1"], "unknown context feature"),
         (["render", "CartPole", "--grid", "length"], "FEATURE=V1,V2"),

@@ -186,7 +186,12 @@ def add_list(subparsers) -> None:
 
 def run_describe(args: argparse.Namespace) -> int:
     env_spec = crl.spec(args.env)
-    env = env_spec.factory()
+    if args.backend is None:
+        env = env_spec.factory()
+    elif env_spec.family != "brax":
+        raise ValueError(f"--backend: only the Brax environments have one; {env_spec.id} has none")
+    else:
+        env = env_spec.factory(backend=args.backend)
     print(f"{env_spec.id} ({env_spec.family}, {'host' if env_spec.host else 'jax'})")
     print((type(env).__doc__ or "").strip().splitlines()[0])
     print(
@@ -204,6 +209,11 @@ def add_describe(subparsers) -> None:
     parser = subparsers.add_parser("describe", help="the feature table of one environment")
     parser.add_argument("env", help="environment id or alias, e.g. CartPole")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    parser.add_argument(
+        "--backend",
+        help="Brax: the physics pipeline (mjx, generalized, spring, positional); the features "
+        "listed are those that act in it",
+    )
     parser.set_defaults(handler=run_describe)
 
 

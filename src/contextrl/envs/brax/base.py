@@ -99,15 +99,18 @@ def load_brax_env(brax_name: str, backend: str, fluid: bool):
     return env
 
 
-def _scaled_mass_features(masses: dict[str, tuple[str, float]]) -> dict[str, Any]:
+def _scaled_mass_features(masses: dict[str, tuple[str, float]], backend: str) -> dict[str, Any]:
     """One absolute mass feature per named link, bounded to [0.1×, 10×] of the stock mass."""
+    meaning = "its inertia scales with it"
+    if backend in MAXIMAL_COORDINATE_BACKENDS:
+        meaning = "value/default scales the effective mass and inertia brax's pipeline uses"
     return {
         name: feature(
             default,
             default / 10,
             default * 10,
             unit="kg",
-            doc=f"mass of the {link} link; its inertia scales with it",
+            doc=f"mass of the {link} link; {meaning}",
         )
         for name, (link, default) in masses.items()
     }
@@ -203,7 +206,8 @@ class BraxEnv(Env):
             fields["joint_stiffness"] = feature(
                 1.0, 0.0, 10.0, doc="scale of every joint's stock spring stiffness"
             )
-        fields.update(_scaled_mass_features(cls.masses))
+        if _effective_mass_exponents(cls.brax_name, backend) != (0.0, 0.0):
+            fields.update(_scaled_mass_features(cls.masses, backend))
         fields.update(cls.task_fields())
         if goal:
             fields.update(
@@ -274,6 +278,15 @@ class BraxEnv(Env):
             "link.inertia.mass": mass[1:],
             "link.inertia.i": jnp.asarray(stock.link.inertia.i) * ratio[1:, None, None],
         }
+        # The spring and positional pipelines use mass**e and inertia**e_i (e = 1 - brax's spring
+        # scale): where 0 < e < 1 the ratio scales that effective value (so the link's is ratio**(1/e)).
+        mass_exponent, inertia_exponent = _effective_mass_exponents(self.brax_name, self.backend)
+        if 0 < mass_exponent < 1:
+            link_mass = jnp.asarray(stock.link.inertia.mass)
+            changes["link.inertia.mass"] = link_mass * ratio[1:] ** (1 / mass_exponent)
+        if 0 < inertia_exponent < 1:
+            scale = ratio[1:] ** (1 / inertia_exponent)
+            changes["link.inertia.i"] = jnp.asarray(stock.link.inertia.i) * scale[:, None, None]
         if self.backend in INVWEIGHT_BACKENDS:
             stock_masses = jnp.all(mass == stock_mass)
             derived = mass_constants(_pose_tables(self.brax_name, self.fluid), mass, inertia)
@@ -359,6 +372,17 @@ class BraxEnv(Env):
         """The goal variant's target (x, y) in the world."""
         angle = compass_angle(self.goal_directions, context.target_direction)
         return context.target_distance * jnp.stack([jnp.cos(angle), jnp.sin(angle)])
+
+
+@functools.cache
+def _effective_mass_exponents(brax_name: str, backend: str) -> tuple[float, float]:
+    """The exponents the pipeline raises link masses and inertias to: 1 - brax's spring scales on the
+    spring and positional pipelines (0: that quantity is fixed at 1, so masses cannot act through it),
+    1 elsewhere."""
+    if backend not in MAXIMAL_COORDINATE_BACKENDS:
+        return (1.0, 1.0)
+    system = load_brax_env(brax_name, backend, False).sys
+    return (1.0 - float(system.spring_mass_scale), 1.0 - float(system.spring_inertia_scale))
 
 
 @functools.cache
