@@ -218,15 +218,36 @@ def test_goal_variant_rewards_progress_toward_the_target_and_ends_there():
     rows, ours, theirs = _rollouts("Hopper", **CONFIGURATIONS["Hopper"])
     assert {"target_distance", "target_direction", "target_radius"} <= {label for label, _ in rows}
     index = {label: i for i, (label, _) in enumerate(rows)}
-    # The reward is the step's decrease of the torso's distance to the target (100 m east).
+    # The reward is the step's decrease of the torso's distance to the target (100 m east), floored at
+    # 0 as CARL's: a step away from the target earns 0, not a penalty.
     default = copy_trajectory(ours, index["default"])
     distance = np.linalg.norm(default["torso"] - np.array([100.0, 0.0]), axis=-1)
-    np.testing.assert_allclose(default["reward"], distance[:-1] - distance[1:], atol=1e-5)
+    progress = distance[:-1] - distance[1:]
+    np.testing.assert_allclose(default["reward"], np.maximum(0.0, progress), atol=1e-5)
+    west = copy_trajectory(ours, index["target_direction"])  # the target 100 m west instead
+    west_progress = -np.diff(np.linalg.norm(west["torso"] - np.array([-100.0, 0.0]), axis=-1))
+    assert np.any(progress < -1e-4) or np.any(west_progress < -1e-4)  # some step moved away
+    np.testing.assert_allclose(west["reward"], np.maximum(0.0, west_progress), atol=1e-5)
     assert not np.allclose(default["reward"], theirs["reward"])
     # A radius wider than the target's distance: reached at the first step, the episode ends.
     assert ours["terminated"][0, index["target_radius"]]
     # Far from the target, the episode ends only when brax's hopper falls.
     np.testing.assert_array_equal(default["terminated"], theirs["terminated"])
+
+
+def test_pusher_starts_the_object_clear_of_the_contexts_goal():
+    """brax's Pusher keeps the object's start 0.17 m from the stock goal; ours from the context's goal.
+    With the goal moved into the middle of the region the start is drawn from, each of 64 starts keeps
+    the clearance (brax's rule, measured from the stock goal, leaves some on the goal). The reset is the
+    same on every pipeline; positional's compiles fastest."""
+    env = family.Pusher(backend="positional")
+    goal = np.array([0.45, -0.2])
+    context = env.context(goal_position_x=goal[0], goal_position_y=goal[1])
+    keys = jax.random.split(jax.random.key(0), 64)
+    states = jax.jit(jax.vmap(env.init, in_axes=(0, None)))(keys, context)
+    link = env.stock_system.link_names.index("object")
+    distance = np.linalg.norm(np.asarray(states.pipeline_state.x.pos[:, link, :2]) - goal, axis=-1)
+    assert distance.min() >= 0.17 - 1e-5, distance.min()
 
 
 def test_public_checker_passes_with_the_medium_model():

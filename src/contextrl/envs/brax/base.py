@@ -257,7 +257,7 @@ class BraxEnv(Env):
             changes["dof.damping"] = jnp.asarray(stock.dof.damping) * values["joint_damping"]
         if "joint_stiffness" in values:
             changes["jnt_stiffness"] = jnp.asarray(stock.jnt_stiffness) * values["joint_stiffness"]
-        if self.masses:
+        if self.masses and set(self.masses) <= set(values):  # declared where they can act
             changes.update(self._mass_changes(stock, values))
         changes.update(self.task_system_changes(stock, values))
         return stock.tree_replace(changes)
@@ -357,7 +357,9 @@ class BraxEnv(Env):
             target = self.target(context)
             before = jnp.linalg.norm(state.pipeline_state.x.pos[0, :2] - target)
             after = jnp.linalg.norm(next_state.pipeline_state.x.pos[0, :2] - target)
-            reward = before - after
+            reward = jnp.maximum(
+                0.0, before - after
+            )  # CARL's: progress only, no penalty for retreat
             terminated = terminated | (after <= context.target_radius)
         return next_state, reward, terminated
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -153,6 +154,8 @@ class Reacher(BraxEnv):
 
 
 GOAL_BODY = "goal"
+OBJECT_BODY = "object"
+OBJECT_CLEARANCE = 0.17  # brax's Pusher starts the object at least this far (m) from the goal
 
 
 @dataclasses.dataclass(frozen=True)
@@ -198,6 +201,44 @@ class Pusher(BraxEnv):
             "body_pos": jnp.asarray(stock.body_pos).at[link + 1].set(goal),
             "link.transform.pos": jnp.asarray(stock.link.transform.pos).at[link].set(goal),
         }
+
+    def init(self, key, context):
+        """brax's reset, with the object kept ``OBJECT_CLEARANCE`` from the context's goal rather than
+        the stock one: the object's slide joints (y, then x, measured from where the model places the
+        object) are drawn as brax draws them, then pushed out radially from the goal to the clearance.
+        At the default goal, which sits right below the object, this is brax's own reset."""
+        from brax import math as brax_math  # brax loads with the environment (base.load_brax_env)
+
+        env = self.brax_env(context)
+        key_y, key_x, key_velocity = jax.random.split(key, 3)
+        start = jnp.concatenate(
+            [
+                jax.random.uniform(key_y, (1,), minval=-0.3, maxval=-1e-6),
+                jax.random.uniform(key_x, (1,), minval=-0.2, maxval=0.2),
+            ]
+        )
+        stock = self.stock_system
+        object_position = jnp.asarray(stock.body_pos)[stock.link_names.index(OBJECT_BODY) + 1]
+        goal = jnp.stack(
+            [
+                context.goal_position_y - object_position[1],
+                context.goal_position_x - object_position[0],
+            ]
+        )
+        away = start - goal
+        distance = brax_math.safe_norm(away)
+        start = goal + away * jnp.where(
+            distance < OBJECT_CLEARANCE, OBJECT_CLEARANCE / distance, 1.0
+        )
+        q = env.sys.init_q.at[-4:].set(jnp.concatenate([start, jnp.zeros(2)]))
+        velocity = jax.random.uniform(
+            key_velocity, (env.sys.qd_size(),), minval=-0.005, maxval=0.005
+        )
+        pipeline_state = env.pipeline_init(q, velocity.at[-4:].set(0.0))
+        # brax's reset gives the rest of the state (rewards, metrics); its own physics is unused
+        return env.reset(key).replace(
+            pipeline_state=pipeline_state, obs=env._get_obs(pipeline_state)
+        )
 
     def state_variables(self, state):
         """Joint positions and velocities, and where the goal is (a body the context places)."""
