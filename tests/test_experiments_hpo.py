@@ -39,6 +39,21 @@ def test_fields_hpo_does_not_use_are_refused_not_ignored():
     assert parse_spec({"protocol": "hpo", "seeds": 3, "bootstrap_reps": 500}).bootstrap_reps == 500
 
 
+def test_each_round_trains_with_the_rate_pb2_set_unless_annealing_per_round_is_asked():
+    """PPO anneals its learning rate to 0 over its training; a PB2 round is a whole training, so an
+    annealed schedule would restart at every round. hpo trains each round at the rate PB2 set;
+    anneal_per_round names the other choice; giving anneal_lr is refused, as is annealing for an
+    agent that has none."""
+    spec = parse_spec({"protocol": "hpo", "agent": "ppo"})
+    assert spec._config({"learning_rate": 1e-3}).anneal_lr is False
+    spec = parse_spec({"protocol": "hpo", "agent": "ppo", "anneal_per_round": True})
+    assert spec._config({"learning_rate": 1e-3}).anneal_lr is True
+    with pytest.raises(SpecError, match="agent_options.anneal_lr: hpo trains each round with"):
+        parse_spec({"protocol": "hpo", "agent": "ppo", "agent_options": {"anneal_lr": True}})
+    with pytest.raises(SpecError, match="anneal_per_round: the dqn agent has no learning-rate"):
+        parse_spec({"protocol": "hpo", "agent": "dqn", "anneal_per_round": True})
+
+
 @pytest.fixture(
     scope="module"
 )  # the suite's costliest setup: made once (make test: --dist loadfile)

@@ -71,6 +71,8 @@ class HPOSpec(CommonSpec):
     population: int = 4
     rounds: int = 8
     steps_per_round: int = 20_000
+    # Each round trains with the rate PB2 set for it; true: PPO anneals it to 0 within every round.
+    anneal_per_round: bool = False
 
     runs_on_ray = True
     unused_fields = {
@@ -99,6 +101,21 @@ class HPOSpec(CommonSpec):
         if len(self.variants) != 1:
             raise SpecError(
                 f"variants: hpo tunes one visibility variant, got {list(self.variants)}"
+            )
+        if not isinstance(self.anneal_per_round, bool):
+            raise SpecError(
+                f"anneal_per_round: expected true or false, got {self.anneal_per_round!r}"
+            )
+        annealing = "anneal_lr" in self.agent_entry().option_names()
+        if "anneal_lr" in self.agent_options:
+            raise SpecError(
+                "agent_options.anneal_lr: hpo trains each round with the learning rate PB2 sets for "
+                "it (a restarted schedule would decay it to 0 every round); --set "
+                "anneal_per_round=true anneals it within each round"
+            )
+        if self.anneal_per_round and not annealing:
+            raise SpecError(
+                f"anneal_per_round: the {self.agent} agent has no learning-rate annealing"
             )
         if self.population < 2:
             raise SpecError(f"population: PB2 needs at least 2 members, got {self.population}")
@@ -134,6 +151,8 @@ class HPOSpec(CommonSpec):
 
     def _config(self, hyper: Mapping[str, float]):
         options = {**self.agent_options, **hyper, "total_timesteps": self.steps_per_round}
+        if "anneal_lr" in self.agent_entry().option_names():
+            options["anneal_lr"] = self.anneal_per_round
         try:
             return self.agent_entry().config(self.env, options, self.variants[0])
         except ConfigError as error:
