@@ -1,21 +1,14 @@
-"""The Brax family: every task matches brax step by step at the default context, every declared feature
-changes the trajectory, each copy of one vmapped batch runs its own physics (the CARL failure cannot
-happen), the public checker passes, time limits truncate, and the gymnasium face works.
-
-MJX compiles slowly on CPU (compiling, not stepping, is nearly all of this file's time), so each
-configuration is compiled once (``_rollouts`` is cached) and runs few steps with few copies: one program
-per task holds brax's own rollout and ours over a batch of contexts (the default one, one per feature
-moved off its default, and CARL's failure cases). Hopper's program is its goal variant, which also
-carries brax's own reward in its state, so one program shows both parity and the goal reward.
+"""The Brax family: every task matches brax step by step at the default context and every declared
+feature changes the trajectory (the three largest tasks in test_brax_large.py), each copy of one
+vmapped batch runs its own physics (the CARL failure cannot happen), the systems built from contexts
+are brax's and MuJoCo's, the goal variant and Pusher's reset follow the context. The programs are
+described in tests/brax_rollouts.py; the checker, the gymnasium face and learning: test_brax_agents.py.
 """
 
 import copy
 import dataclasses
-import functools
 import importlib.util
 
-import gymnasium
-import gymnasium.utils.env_checker
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,161 +18,28 @@ import pytest
 if importlib.util.find_spec("brax") is None:
     pytest.skip("brax is not installed", allow_module_level=True)
 
-import learning  # noqa: E402  (tests/learning.py: the runs shared with the margin script)
+from brax_rollouts import (  # noqa: E402  (tests/brax_rollouts.py)
+    CONFIGURATIONS,
+    LARGE,
+    NAMES,
+    assert_every_feature_acts,
+    assert_finite_while_running,
+    assert_matches_brax,
+    brax_own,
+    copy_trajectory,
+    differs,
+    moved_value,
+    rollouts,
+)
 
 import contextrl as crl  # noqa: E402
 from contextrl.context.features import ContextError  # noqa: E402
 from contextrl.envs import brax as family  # noqa: E402
-from contextrl.testing import check_env, probe_values  # noqa: E402
-
-STEPS = 30  # long enough for every walker's feet to reach the ground
-# Tasks without a walker's fall need fewer (Pusher's MJX step is by far the slowest to run on CPU).
-FEWER_STEPS = {"Pusher": 8, "Reacher": 8, "InvertedPendulum": 8, "InvertedDoublePendulum": 8}
-PARITY_STEPS = 8  # contacts amplify float rounding; brax's own rollout is compared over these
-NAMES = [cls.__name__ for cls in family.ENVIRONMENTS]
-# The configuration each task's parity program runs: Hopper's goal variant keeps brax's physics and
-# brax's reward (in its state), so the goal test shares Hopper's program.
-CONFIGURATIONS = {name: {} for name in NAMES} | {"Hopper": {"goal": True}}
 
 
-def moved_value(feature):
-    """A value off the default: a different compass code, else halfway to the upper bound (or the
-    lower one where the default sits at the top)."""
-    if feature.kind == "categorical":
-        return probe_values(feature)[0]
-    if feature.default < feature.upper:
-        return (feature.default + feature.upper) / 2
-    return (feature.default + feature.lower) / 2
-
-
-def batch_rows(env) -> list[tuple[str, dict]]:
-    """(label, feature values) per copy: the default, each feature moved alone, CARL's cases."""
-    rows = [("default", {})]
-    rows += [(name, {name: moved_value(f)}) for name, f in env.context_space.features.items()]
-    if "gravity" in env.context_space.names:
-        rows += [("gravity 9.8", {"gravity": 9.8}), ("gravity 1", {"gravity": 1.0})]
-    if "mass_torso" in env.context_space.names:
-        torso = env.context_space.features["mass_torso"].default
-        rows.append(("torso mass x10", {"mass_torso": 10 * torso}))
-    return rows
-
-
-@functools.cache
-def brax_own(brax_name: str, backend: str):
-    """brax's own environment, loaded once per test session."""
-    from brax import envs as brax_envs
-
-    return brax_envs.get_environment(brax_name, backend=backend)
-
-
-@functools.cache
-def _rollouts(name: str, backend: str = "mjx", goal: bool = False, fluid: bool = False):
-    """brax's own rollout and ours over a batch of contexts, from one key and one action sequence.
-
-    Returns (rows, ours, theirs): ``ours`` maps "obs", "reward", "terminated" to arrays of shape
-    (steps + 1 for obs | steps, copies, ...), "brax_reward" to brax's reward kept in our state and
-    "torso" to the (x, y) of the first link; ``theirs`` has the first three for brax's unbatched env.
-    """
-    env = getattr(family, name)(backend=backend, goal=goal, fluid=fluid)
-    stock = brax_own(env.brax_name, backend)
-    rows = batch_rows(env)
-    contexts = env.context_space.stack([env.context(**values) for _, values in rows])
-    key, action_key = jax.random.split(jax.random.key(7))
-    steps = FEWER_STEPS.get(name, STEPS)
-    actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, steps))
-
-    def run(key, contexts, actions):
-        ours = jax.vmap(env.init, in_axes=(None, 0))(key, contexts)
-        theirs = stock.reset(key)
-        transition = jax.vmap(env.transition, in_axes=(None, 0, None, 0))
-
-        def body(carry, action):
-            ours, theirs = carry
-            ours, reward, terminated = transition(key, ours, action, contexts)
-            theirs = stock.step(theirs, action)
-            return (ours, theirs), (
-                jax.vmap(env.observe)(ours, contexts),
-                reward,
-                terminated,
-                ours.reward,
-                ours.pipeline_state.x.pos[:, 0, :2],
-                theirs.obs,
-                theirs.reward,
-                theirs.done > 0.5,
-            )
-
-        first = (
-            jax.vmap(env.observe)(ours, contexts),
-            theirs.obs,
-            ours.pipeline_state.x.pos[:, 0, :2],
-        )
-        _, trajectory = jax.lax.scan(body, (ours, theirs), actions)
-        return first, trajectory
-
-    (first_ours, first_theirs, first_torso), trajectory = jax.jit(run)(key, contexts, actions)
-    obs, reward, terminated, brax_reward, torso, their_obs, their_reward, their_done = map(
-        np.asarray, trajectory
-    )
-    ours = {
-        "obs": np.concatenate([np.asarray(first_ours)[None], obs]),
-        "reward": reward,
-        "terminated": terminated,
-        "brax_reward": brax_reward,
-        "torso": np.concatenate([np.asarray(first_torso)[None], torso]),
-    }
-    theirs = {
-        "obs": np.concatenate([np.asarray(first_theirs)[None], their_obs]),
-        "reward": their_reward,
-        "terminated": their_done,
-    }
-    return rows, ours, theirs
-
-
-def copy_trajectory(ours, index):
-    return {k: v[:, index] for k, v in ours.items()}
-
-
-def assert_matches_brax(ours, theirs, tolerance=1e-4):
-    """Copy 0 (the default context) is brax's rollout, to float32 rounding: our program computes the
-    system's values at run time where brax's folds them as constants, and one ulp of difference grows
-    along a trajectory (see the spring test); brax's reward is the one kept in our state (the goal
-    variant returns its own)."""
-    default = copy_trajectory(ours, 0)
-    pairs = {
-        "obs": (default["obs"][: PARITY_STEPS + 1], theirs["obs"][: PARITY_STEPS + 1]),
-        "reward": (default["brax_reward"][:PARITY_STEPS], theirs["reward"][:PARITY_STEPS]),
-    }
-    for key, (mine, brax) in pairs.items():
-        np.testing.assert_allclose(mine, brax, rtol=tolerance, atol=tolerance, err_msg=key)
-    np.testing.assert_array_equal(
-        default["terminated"][:PARITY_STEPS], theirs["terminated"][:PARITY_STEPS]
-    )
-
-
-def differs(ours, a, b) -> bool:
-    return any(not np.array_equal(v[:, a], v[:, b], equal_nan=True) for v in ours.values())
-
-
-def assert_finite_while_running(ours):
-    """Every copy stays finite until its episode ends (the rollout steps on past an end, where a
-    fallen humanoid under random actions may diverge; a real episode restarts there)."""
-    ended = np.cumsum(ours["terminated"], axis=0) > 0  # [t]: the episode ended at step t or before
-    stepping = np.concatenate(
-        [np.ones_like(ended[:1]), ~ended[:-1]]
-    )  # [t]: step t is taken mid-episode
-    after = np.concatenate([np.ones_like(ended[:1]), stepping])  # the first obs, then each step's
-    assert np.all(np.isfinite(ours["reward"][stepping])), "non-finite reward mid-episode"
-    assert np.all(np.isfinite(ours["obs"][after])), "non-finite observation mid-episode"
-
-
-def assert_every_feature_acts(rows, ours):
-    silent = [label for i, (label, _) in enumerate(rows) if i > 0 and not differs(ours, 0, i)]
-    assert not silent, f"features that left the trajectory unchanged: {silent}"
-
-
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", [name for name in NAMES if name not in LARGE])
 def test_default_context_matches_brax_and_every_feature_acts(name):
-    rows, ours, theirs = _rollouts(name, **CONFIGURATIONS[name])
+    rows, ours, theirs = rollouts(name, **CONFIGURATIONS[name])
     assert_matches_brax(ours, theirs)
     assert_finite_while_running(ours)
     assert_every_feature_acts(rows, ours)
@@ -189,7 +49,7 @@ def test_default_context_matches_brax_and_every_feature_acts(name):
 
 def test_carl_failure_cannot_happen_gravity_and_torso_mass_act_in_one_batch():
     """CARL's Brax contexts gave identical trajectories for gravity 9.8 vs 1 and torso mass ×10."""
-    rows, ours, _ = _rollouts("Ant")
+    rows, ours, _ = rollouts("Ant")
     index = {label: i for i, (label, _) in enumerate(rows)}
     assert differs(ours, index["gravity 9.8"], index["gravity 1"])
     assert differs(ours, index["default"], index["torso mass x10"])
@@ -207,7 +67,7 @@ def test_spring_pipeline_matches_brax_and_models_elasticity_and_angular_damping(
     moving brax's gravity by one ulp drifts as far (4e-1 by step 30); in float64 the two brax programs
     agree to 1e-11 at step 10 and 1e-6 at step 30. MJX drifts as much beyond ten steps (brax against
     itself: 8e-2 by step 20); only which program happens to fold like brax's differs."""
-    rows, ours, theirs = _rollouts("HalfCheetah", backend="spring")
+    rows, ours, theirs = rollouts("HalfCheetah", backend="spring")
     assert {"elasticity", "ang_damping"} <= {label for label, _ in rows}
     assert_matches_brax(ours, theirs, tolerance=1e-3)
     assert_every_feature_acts(rows, ours)
@@ -215,7 +75,7 @@ def test_spring_pipeline_matches_brax_and_models_elasticity_and_angular_damping(
 
 def test_goal_variant_rewards_progress_toward_the_target_and_ends_there():
     """Hopper's program (shared with its parity test) runs the goal variant."""
-    rows, ours, theirs = _rollouts("Hopper", **CONFIGURATIONS["Hopper"])
+    rows, ours, theirs = rollouts("Hopper", **CONFIGURATIONS["Hopper"])
     assert {"target_distance", "target_direction", "target_radius"} <= {label for label, _ in rows}
     index = {label: i for i, (label, _) in enumerate(rows)}
     # The reward is the step's decrease of the torso's distance to the target (100 m east), floored at
@@ -248,34 +108,6 @@ def test_pusher_starts_the_object_clear_of_the_contexts_goal():
     link = env.stock_system.link_names.index("object")
     distance = np.linalg.norm(np.asarray(states.pipeline_state.x.pos[:, link, :2]) - goal, axis=-1)
     assert distance.min() >= 0.17 - 1e-5, distance.min()
-
-
-def test_public_checker_passes_with_the_medium_model():
-    """The full checker (no recompilation, same key same trajectory, truncation, every declared effect)
-    on InvertedPendulum with MuJoCo's medium on (``fluid=True``), so ``viscosity`` must act too."""
-    env = family.InvertedPendulum(max_steps=4, fluid=True)
-    assert "viscosity" in env.context_space.names
-    check_env(env, num_contexts=4, steps=9)
-
-
-def test_time_limit_truncates_through_the_gymnasium_face():
-    env = gymnasium.make(
-        "contextrl/BraxInvertedPendulum-v0",
-        contexts=[{"mass_pole": 2.0}, {"mass_pole": 8.0}],
-        max_steps=3,
-        render_mode="rgb_array",
-    )
-    gymnasium.utils.env_checker.check_env(env.unwrapped, skip_render_check=True)
-    obs, info = env.reset(seed=0)
-    assert env.observation_space.contains(obs) and info["context"]["mass_pole"] == 2.0
-    ends = []
-    for _ in range(3):
-        obs, reward, terminated, truncated, info = env.step(np.zeros(1, np.float32))
-        ends.append((terminated, truncated))
-    assert ends == [(False, False), (False, False), (False, True)]
-    frame = env.render()
-    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.std() > 0
-    env.close()
 
 
 def test_registered_with_carl_aliases_and_validated():
@@ -393,32 +225,3 @@ def test_dataclass_replace_keeps_the_loaded_model():
     shorter = dataclasses.replace(env, max_steps=10)
     assert shorter.stock_system is env.stock_system and shorter.max_steps == 10
     assert jnp.shape(shorter.action_space.low) == (3,)
-
-
-def test_ppo_learns_inverted_pendulum():
-    """PPO, 8,192 steps (8 copies × 64 steps × 16 updates), seeds 0–3 in one vmapped call: the mean
-    episode return of the first 2 and the last 4 updates (200-step episodes; a random policy keeps
-    the pole up for about 5 steps).
-
-    Measured (tests/learning_margins.py): default numerics, seeds 0–15: first 5.1–6.8, last
-    56.7–93.3; fast math, seeds 100–107: first 5.2–6.1, last 41.7–76.1. Every seed's last updates
-    above 30 and above 4 × its first ones hold with a margin (worst measured: 41.7, and 6.1 ×).
-    """
-    statistics = learning.brax_ppo_pendulum(range(4))
-    first, last = statistics["first_updates"], statistics["last_updates"]
-    assert np.all(first < 15), first
-    assert np.all(last > 30) and np.all(last > 4 * first), (first, last)
-
-
-def test_sac_learns_inverted_pendulum():
-    """SAC, 3,000 steps (2 copies, 500 random warm-up transitions, then an update per step), seeds
-    0–3 in one vmapped call: the mean episode return of the first and the last of six log rows.
-
-    Measured (tests/learning_margins.py): default numerics, seeds 0–15: first 4.1–6.0, last
-    57.6–104.8; fast math, seeds 100–107: first 4.1–6.5, last 65.3–90.3. Every seed's last row
-    above 30 and above 3 × its first holds with a margin (worst measured: 57.6, and 8.9 ×).
-    """
-    statistics = learning.brax_sac_pendulum(range(4))
-    first, last = statistics["first_rows"], statistics["last_rows"]
-    assert np.all(first < 15), first
-    assert np.all(last > 30) and np.all(last > 3 * first), (first, last)

@@ -12,7 +12,7 @@ import contextrl as crl
 from contextrl.envs.classic_control.cartpole import CartPole
 from contextrl.testing import check_env, check_feature_effects
 
-# The Brax family runs the checker at small settings in test_brax.py (MJX compiles slowly on CPU).
+# The Brax family runs the checker at small settings in test_brax_agents.py (MJX compiles slowly on CPU).
 JAX_IDS = [i for i in crl.registered() if not crl.spec(i).host and crl.spec(i).family != "brax"]
 
 

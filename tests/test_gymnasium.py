@@ -31,7 +31,7 @@ def _two_contexts(env_id):
     return [{name: feature.default}, {name: other}]
 
 
-# Brax's gymnasium face is checked in test_brax.py on one task (each mode would compile MJX again).
+# Brax's gymnasium face is checked in test_brax_agents.py on one task (each mode would compile MJX again).
 @pytest.mark.parametrize("env_id", [i for i in crl.registered() if crl.spec(i).family != "brax"])
 def test_gymnasium_check_env_passes_in_every_observation_mode(env_id):
     for mode in OBS_MODES:
