@@ -30,9 +30,7 @@ MJ_MINVAL = 1e-15  # MuJoCo's mjMINVAL
 class PoseTables:
     """What the mass-derived constants need of a model at its initial pose, none of it mass-dependent."""
 
-    jacobian: (
-        np.ndarray
-    )  # (nbody, 6, nv): translational then rotational Jacobian at each body's COM
+    jacobian: np.ndarray  # (nbody, 6, nv): translational, then rotational, at each body's COM
     frame: np.ndarray  # (nbody, 3, 3): each body's inertial frame in the world
     armature: np.ndarray  # (nv,)
     parent: np.ndarray  # (nbody,)
