@@ -38,13 +38,14 @@ LAYERS = [
 ]
 
 # Inside experiments, the order the modules build on each other (lowest first): specs, their expansion
-# into trials, running a chunk, run directories, reports, the protocols, executors, the runner, the
+# into trials, running a chunk, run directories (and where Ray's output goes in one), reports, the protocols, executors, the runner, the
 # commands around it, and the package that registers the protocols.
 EXPERIMENTS = [
     "spec",
     "protocols",
     "trials",
     "runs",
+    "ray_output",
     "analyze",
     "sensitivity",
     "optimality_gap",

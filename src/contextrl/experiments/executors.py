@@ -15,7 +15,6 @@ import contextlib
 import dataclasses
 import functools
 import io
-import logging
 import multiprocessing
 import os
 import queue
@@ -23,14 +22,13 @@ import re
 import sys
 import time
 import traceback
-import warnings
 from collections.abc import Callable, Iterator
-from typing import TextIO
 
 from tqdm import tqdm
 
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.protocols import Plan, expand
+from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
 from contextrl.experiments.trials import run_chunk
@@ -339,29 +337,6 @@ def run_processes(
             yield from _as_finished(pending, wait, lambda future: future.result, bars)
 
     return _drive(run, plan, max_chunks, progress, save_params, finished)
-
-
-@contextlib.contextmanager
-def ray_output_to(stream: TextIO) -> Iterator[None]:
-    """Ray's and Tune's own log lines and Python's warnings go to ``stream`` (the run's
-    ``ray/ray.log``), not the terminal, which shows contextrl's own progress instead."""
-    handler = logging.StreamHandler(stream)
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    ray_logger = logging.getLogger("ray")
-    saved = ray_logger.handlers[:], ray_logger.propagate
-    ray_logger.handlers[:] = [handler]
-    ray_logger.propagate = False
-
-    def to_log(message, category, filename, lineno, file=None, line=None):
-        stream.write(warnings.formatwarning(message, category, filename, lineno, line))
-
-    try:
-        with warnings.catch_warnings():
-            warnings.showwarning = to_log
-            yield
-    finally:
-        ray_logger.handlers[:], ray_logger.propagate = saved
-        handler.flush()
 
 
 def connect(

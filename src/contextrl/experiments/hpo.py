@@ -32,8 +32,8 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
-from contextrl.experiments.executors import ray_output_to
 from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
+from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
     CommonSpec,
