@@ -88,9 +88,11 @@ def test_terminal_shows_a_line_per_round_and_ray_writes_to_the_run_log(pb2_runs)
     for member in (0, 1):
         for round_ in (1, 2, 3):
             assert f"hpo: member {member}, round {round_}/3: return " in printed
-    assert "Trial status" not in printed and "╭" not in printed and "INFO" not in printed
+    for noise in ("Trial status", "Configuration for experiment", "View detailed results", "INFO"):
+        assert noise not in printed, noise
     logged = (pb2_runs[0] / "ray" / "ray.log").read_text()
     assert "Started a local Ray instance" in logged and "Exploit" in logged
+    assert "Configuration for experiment" in logged
 
 
 def schedule(out) -> pd.DataFrame:

@@ -12,8 +12,8 @@ from typing import TextIO
 
 @contextlib.contextmanager
 def ray_output_to(stream: TextIO) -> Iterator[None]:
-    """Ray's and Tune's own log lines and Python's warnings go to ``stream`` (the run's
-    ``ray/ray.log``), not the terminal, which shows contextrl's own progress instead."""
+    """Ray's and Tune's own log lines, what they print and Python's warnings go to ``stream`` (the
+    run's ``ray/ray.log``), not the terminal, which shows contextrl's own progress (on stderr)."""
     handler = logging.StreamHandler(stream)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     ray_logger = logging.getLogger("ray")
@@ -24,8 +24,8 @@ def ray_output_to(stream: TextIO) -> Iterator[None]:
     def to_log(message, category, filename, lineno, file=None, line=None):
         stream.write(warnings.formatwarning(message, category, filename, lineno, line))
 
-    try:
-        with warnings.catch_warnings():
+    try:  # Tune prints its experiment box and result paths to stdout even when silent
+        with warnings.catch_warnings(), contextlib.redirect_stdout(stream):
             warnings.showwarning = to_log
             yield
     finally:
