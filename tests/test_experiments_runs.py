@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from contextrl.agents.common import Progress
-from contextrl.experiments import RunDir, expand, report, resume, run_experiment
+from contextrl.experiments import RunDir, executors, expand, report, resume, run_experiment
 from contextrl.experiments.executors import ChunkBar, ProgressLines, run_local
 from contextrl.experiments.runs import atomic_write
 from contextrl.experiments.trials import run_chunk
@@ -148,13 +148,18 @@ def test_interrupted_run_resumes_to_the_same_results(tmp_path):
     assert (part.path / "report.html").exists()
 
 
-def test_worker_processes_give_the_results_of_this_process(tmp_path):
-    """The processes executor spreads chunks over worker processes: same rows, none lost or doubled."""
+def test_worker_processes_give_the_results_of_this_process(tmp_path, monkeypatch, capsys):
+    """The processes executor spreads chunks over worker processes: same rows, none lost or doubled;
+    on a terminal each chunk's bar is drawn from what its worker reports through the queue."""
     here, _ = run_experiment(VISIBILITY, out=tmp_path / "here", progress=False, report=False)
+    monkeypatch.setattr(executors, "_shows_bars", lambda progress: progress)  # as on a terminal
+    capsys.readouterr()
     spread, summary = run_experiment(
-        VISIBILITY, out=tmp_path / "spread", executor="processes", progress=False, report=False
+        VISIBILITY, out=tmp_path / "spread", executor="processes", report=False
     )
     assert summary.ran == [0, 1, 2, 3] and summary.failed == []
+    shown = capsys.readouterr().err
+    assert all(f"chunk {chunk} (1 trials, hidden)" in shown for chunk in range(4)), shown
     columns = ["trial", "context_index", "return"]
     ordered = spread.results()[columns].sort_values(columns[:2], ignore_index=True)
     pd.testing.assert_frame_equal(

@@ -142,23 +142,6 @@ def test_ray_address_without_a_cluster_is_one_line_and_makes_nothing(argv, tmp_p
     assert not (tmp_path / "runs").exists()
 
 
-def test_ray_start_up_lines_go_to_the_run_log_unless_verbose(tmp_path):
-    """The lines Ray prints while a local instance starts (before the run directory exists) are kept
-    for the run's ray/ray.log; --verbose shows them on the terminal instead."""
-    sets = ["--set", "num_train_contexts=1", "--set", "num_test_contexts=1"]
-    for verbose in (False, True):
-        out = tmp_path / f"verbose-{verbose}"
-        argv = ["run", "visibility", *TINY_RANDOM, *sets, "--executor", "ray", "--out", out]
-        result = contextrl(*argv, *(["--verbose"] if verbose else []), cwd=tmp_path)
-        assert result.returncode == 0, result.stderr
-        log = out / "ray" / "ray.log"
-        started = "Started a local Ray instance"
-        if verbose:
-            assert started in result.stderr and not log.exists()
-        else:
-            assert started not in result.stderr and started in log.read_text()
-
-
 def test_yaml_numbers_vary_merge_and_dry_run(tmp_path):
     """``1e5`` is a number; --vary replaces one feature of the config and says so; the dry run counts
     trials, chunks and steps (checked by hand) and writes nothing."""
