@@ -357,9 +357,8 @@ class BraxEnv(Env):
             target = self.target(context)
             before = jnp.linalg.norm(state.pipeline_state.x.pos[0, :2] - target)
             after = jnp.linalg.norm(next_state.pipeline_state.x.pos[0, :2] - target)
-            reward = jnp.maximum(
-                0.0, before - after
-            )  # CARL's: progress only, no penalty for retreat
+            # CARL's reward: progress toward the target only, no penalty for moving away
+            reward = jnp.maximum(0.0, before - after)
             terminated = terminated | (after <= context.target_radius)
         return next_state, reward, terminated
 
