@@ -59,6 +59,7 @@ EXPERIMENTS = [
     "reevaluate",
     "compare",
     "tensorboard",
+    "paper",
     "commands",
 ]
 

@@ -381,11 +381,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_render(subparsers)
     add_cache(subparsers)
     # imported here: the experiment layer loads pandas and matplotlib, which `list` does not need
-    from contextrl.experiments.commands import add_eval, add_report, add_run
+    from contextrl.experiments.commands import add_eval, add_paper, add_report, add_run
 
     add_run(subparsers)
     add_report(subparsers)
     add_eval(subparsers)
+    add_paper(subparsers)
     return parser
 
 

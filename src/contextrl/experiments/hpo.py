@@ -86,6 +86,9 @@ class HPOSpec(CommonSpec):
             f"{self.steps_per_round} steps each (base seed {self.seed}); the best member is evaluated"
         )
 
+    def training_steps(self, trials) -> int:
+        return self.population * self.rounds * self.steps_per_round
+
     def validate(self) -> None:
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):

@@ -35,7 +35,7 @@ COMPILE_EVENTS = (
 )
 
 
-def _duration(seconds: float) -> str:
+def duration(seconds: float) -> str:
     seconds = round(seconds)
     hours, rest = divmod(seconds, 3600)
     minutes, seconds = divmod(rest, 60)
@@ -142,7 +142,7 @@ def _estimate(spec: CommonSpec, plan: Plan, root: str | os.PathLike) -> tuple[fl
         seconds = sum(timings.values()) / len(timings) * len(plan.chunks)
         return seconds, (
             f"  estimate from the timings of {len(runs)} earlier run(s) of this spec in {root} "
-            f"(newest: {path}, {len(timings)} chunk(s) in {_duration(sum(timings.values()))}); "
+            f"(newest: {path}, {len(timings)} chunk(s) in {duration(sum(timings.values()))}); "
             "nothing was compiled or trained"
         )
     timing = calibrate(spec, plan)
@@ -155,7 +155,7 @@ def _estimate(spec: CommonSpec, plan: Plan, root: str | os.PathLike) -> tuple[fl
     )
     return chunk_seconds + groups * timing["compile"], (
         f"  calibration: the first chunk ({timing['size']} trials) compiled once and run at "
-        f"{timing['budget']:,} steps took {_duration(timing['spent'])}; compile "
+        f"{timing['budget']:,} steps took {duration(timing['spent'])}; compile "
         f"{timing['compile']:.1f} s per compiled group ({groups}), {how}, "
         "plus the measured evaluation time per chunk"
     )
@@ -184,7 +184,7 @@ def describe_plan(
         f"  chunks: {len(plan.chunks)} (up to {spec.batch_size} trials trained together; "
         "a chunk is the unit written and resumed)"
     )
-    train_steps = sum(_timesteps(spec, t.variant) for t in plan.trials)
+    train_steps = spec.training_steps(plan.trials)
     max_steps = spec.max_steps or spec.make_env().default_max_steps
     eval_steps = sum(
         (len(plan.sets[t.test_set]) + (2 * TRAIN_EVAL_CONTEXTS if agent.trained else 0))
@@ -200,7 +200,7 @@ def describe_plan(
     estimate, how = _estimate(spec, plan, root)
     lines.append(how)
     lines.append(
-        f"  estimated time: {_duration(estimate)} with the local executor on this machine "
+        f"  estimated time: {duration(estimate)} with the local executor on this machine "
         "(a rough extrapolation; Ray spreads chunks over workers)"
     )
     return "\n".join(lines)

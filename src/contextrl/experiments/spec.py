@@ -295,6 +295,14 @@ class CommonSpec:
         """The agent's config for one visibility variant (None for an untrained agent)."""
         return self.agent_entry().config(self.env, self.agent_options, variant)
 
+    def training_steps(self, trials) -> int:
+        """Environment steps the agents of ``trials`` (a plan's) train for, summed."""
+        budgets = {
+            variant: int(getattr(self.agent_config(variant), "total_timesteps", 0) or 0)
+            for variant in {t.variant for t in trials}
+        }
+        return sum(budgets[t.variant] for t in trials)
+
     @property
     def host(self) -> bool:
         """Whether the environment is a host environment (trained through the host collector)."""

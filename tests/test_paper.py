@@ -1,0 +1,96 @@
+"""The paper's figures (``contextrl paper``): every spec parses at every scale and runs end to end at
+the tiny budget; the claim checks decide from intervals; the results page is generated from runs."""
+
+from __future__ import annotations
+
+import pytest
+
+from contextrl.analysis.intervals import Interval
+from contextrl.cli import main
+from contextrl.experiments.paper import (
+    FIGURES,
+    SCALES,
+    SPEC_FOLDER,
+    _all,
+    _decide,
+    results_page,
+    run_figure,
+    spec_data,
+)
+from contextrl.experiments.protocols import expand
+from contextrl.experiments.spec import parse_spec
+
+
+def test_every_spec_file_belongs_to_one_figure_and_states_its_paper_section_and_claim():
+    files = [path for figure in FIGURES.values() for path in figure.files().values()]
+    assert sorted(files) == sorted(SPEC_FOLDER.glob("*.yaml"))
+    for figure in FIGURES.values():
+        assert figure.header("Paper") and figure.header("Claim"), figure.name
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_every_figure_parses_and_plans_at_every_scale(scale):
+    for figure in FIGURES.values():
+        for part in figure.files():
+            spec = parse_spec(spec_data(figure, part, scale))
+            assert spec.name.endswith(f"-{scale}")
+            expand(spec)  # contexts drawn, trials planned
+
+
+def test_the_small_scale_keeps_the_papers_schedule_and_cuts_the_budget():
+    figure = FIGURES["optgap_cartpole"]
+    paper, small = (spec_data(figure, "optgap_cartpole", s) for s in ("paper", "small"))
+    assert paper["agent_options"] == {"total_timesteps": 100000, "context_selector": "round_robin"}
+    assert small["agent_options"] == {"total_timesteps": 30000, "context_selector": "round_robin"}
+    assert (paper["num_contexts"], small["num_contexts"]) == (64, 8)
+
+
+def test_a_claim_holds_only_when_its_interval_clears_the_bound():
+    assert _decide(Interval(5.0, 1.0, 9.0)) is True
+    assert _decide(Interval(-5.0, -9.0, -1.0)) is False
+    assert _decide(Interval(1.0, -1.0, 3.0)) is None
+    assert _decide(Interval(31.0, 29.0, 33.0), 30.0) is None
+    assert _all([True, True]) is True
+    assert _all([True, None]) is None
+    assert _all([None, False]) is False
+
+
+@pytest.fixture(scope="module")
+def paper_runs(tmp_path_factory):
+    return tmp_path_factory.mktemp("paper")
+
+
+@pytest.mark.parametrize("name", list(FIGURES))
+def test_every_figure_runs_end_to_end_at_the_tiny_budget(name, paper_runs):
+    verdict, report = run_figure(name, "tiny", root=paper_runs, progress=False)
+    assert verdict.holds in (True, False, None) and verdict.evidence
+    text = report.read_text()
+    assert FIGURES[name].header("Claim").split(":")[0][:40] in text
+    assert f"the claim {verdict.word}" in text
+
+
+def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
+    """At 20 steps every CartPole episode lasts 20 steps: no gap, so "at least 30" does not hold;
+    the paper's 3-state cMDP has its exact gap of 3 (a context-oblivious policy must pick one action
+    in the state whose best action the contexts disagree on)."""
+    gap, _ = run_figure("optgap_cartpole", "tiny", root=paper_runs, progress=False)
+    assert gap.holds is False and "= 0 [0, 0]" in gap.evidence
+    exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
+    assert exact.holds is True and "3-state cMDP: 3;" in exact.evidence
+
+
+def test_the_results_page_lists_every_figure_and_the_runs_it_finds(paper_runs):
+    run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)  # read back if it ran
+    page = results_page(paper_runs)
+    for name in FIGURES:
+        assert f"## {name}\n" in page
+    tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
+    assert "**tiny budget**" in tabular and "the claim **holds**" in tabular
+
+
+def test_the_command_lists_figures_and_refuses_an_unknown_one(capsys, tmp_path):
+    assert main(["paper", "list", "--runs", str(tmp_path)]) == 0
+    listed = capsys.readouterr().out
+    assert all(f"{name}  (" in listed for name in FIGURES)
+    assert main(["paper", "run", "figure_9", "--runs", str(tmp_path)]) == 2
+    assert "unknown figure 'figure_9'; choose one of ['tabular_cmdp'" in capsys.readouterr().err
