@@ -108,23 +108,22 @@ def _difference(a, b, *, reps: int, seed: int) -> Interval:
     )
 
 
-def _variant_scores(runs: Mapping[str, RunDir]) -> tuple[dict, Any]:
-    """Score matrices by variant over all the figure's runs (a part per variant, or one run)."""
+def _variant_difference(runs: Mapping[str, RunDir], a: str, b: str) -> tuple[dict, Interval]:
+    """Score matrices by variant over all the figure's runs (a part per variant, or one run), and
+    the mean test return of variant ``a`` minus ``b``."""
     scores, spec = {}, None
     for run in runs.values():
         spec, cells = _cells(run)
         scores.update(score_matrices(cells, cells["variant"]))
-    return scores, spec
+    diff = _difference(scores[a].matrix, scores[b].matrix, reps=spec.bootstrap_reps, seed=spec.seed)
+    return scores, diff
 
 
 def better_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
     """Variant ``a``'s mean test return is above ``b``'s."""
 
     def check(runs: Mapping[str, RunDir]) -> Verdict:
-        scores, spec = _variant_scores(runs)
-        diff = _difference(
-            scores[a].matrix, scores[b].matrix, reps=spec.bootstrap_reps, seed=spec.seed
-        )
+        scores, diff = _variant_difference(runs, a, b)
         return Verdict(
             _decide(diff),
             f"mean test return {a} − {b} = {diff} (95% CI; the claim needs it above 0); "
@@ -139,10 +138,7 @@ def similar_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
     """No difference between the mean test returns of ``a`` and ``b``: the interval includes 0."""
 
     def check(runs: Mapping[str, RunDir]) -> Verdict:
-        scores, spec = _variant_scores(runs)
-        diff = _difference(
-            scores[a].matrix, scores[b].matrix, reps=spec.bootstrap_reps, seed=spec.seed
-        )
+        _, diff = _variant_difference(runs, a, b)
         return Verdict(
             diff.low <= 0.0 <= diff.high,
             f"mean test return {a} − {b} = {diff} (95% CI; the claim needs it to include 0)",
@@ -375,12 +371,12 @@ def run_figure(
     figure = FIGURES[name]
     folder = figure_folder(root, name, scale)
     for part in figure.files():
-        data = spec_data(figure, part, scale)
         path = folder / part
         start = time.perf_counter()
-        if (path / "spec.yaml").exists():
+        if (path / "spec.yaml").exists():  # finish it as its own spec.yaml says
             run, _ = resume(path, executor=executor, address=address, progress=progress)
         else:
+            data = spec_data(figure, part, scale)
             run, _ = run_experiment(
                 data, out=path, executor=executor, address=address, progress=progress
             )
@@ -430,16 +426,16 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
         spec = parse_spec(spec_data(figure, part, scale))
         steps += _steps(spec)
         keys.add((spec.env, spec.agent))
-    seconds = per_step = 0.0
+    seconds = measured_steps = 0.0
     for spec_file in Path(root).glob("*/*/spec.yaml"):
         run = RunDir(spec_file.parent)
         spec = run.spec()
         if (spec.env, spec.agent) in keys and run.finished() and _steps(spec):
             seconds += wall_seconds(run)
-            per_step += _steps(spec)
-    if not per_step or not steps:
+            measured_steps += _steps(spec)
+    if not measured_steps or not steps:
         return "not measured"
-    return f"≈ {duration(steps * seconds / per_step)}"
+    return f"≈ {duration(steps * seconds / measured_steps)}"
 
 
 def figure_rows(root: str | Path) -> list[dict[str, str]]:
