@@ -19,6 +19,7 @@ import multiprocessing
 import os
 import queue
 import re
+import socket
 import sys
 import time
 import traceback
@@ -367,6 +368,7 @@ def connect(
 
     if ray.is_initialized():
         return ""
+    _refuse_a_silent_address(address)
     started = io.StringIO()
     try:
         with contextlib.nullcontext() if verbose else ray_output_to(started):
@@ -379,6 +381,21 @@ def connect(
             "to start a local one"
         ) from None
     return started.getvalue()
+
+
+def _refuse_a_silent_address(address: str | None, timeout: float = 5.0) -> None:
+    """A cluster address ``host:port`` where nothing accepts a connection is a one-line error now:
+    ``ray.init`` would retry it for minutes. ``auto``, ``local`` and ``ray://`` addresses are Ray's."""
+    host, _, port = (address or "").rpartition(":")
+    if not host or not port.isdigit() or "://" in address:
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as error:
+        raise SpecError(
+            f"--address {address}: no Ray cluster answers there ({error.strerror or error}); start "
+            "one with `ray start --head`, or leave out --address to start a local one"
+        ) from None
 
 
 def _remote_chunk(spec_data: dict, chunk: int, updates=None):
