@@ -3,6 +3,8 @@ the tiny budget; the claim checks decide from intervals; the results page is gen
 
 from __future__ import annotations
 
+import html
+
 import pytest
 
 from contextrl.analysis.intervals import Interval
@@ -63,14 +65,14 @@ def paper_runs(tmp_path_factory):
 
 # Figures run with the paper's agents, on JAX and host simulators: a minute each, mostly compiling.
 # Every other figure runs end to end with the random agent below, except the PB2 figures, which need
-# an agent with hyper-parameters and a local Ray: their specs parse and plan above, and PB2 itself runs
-# in test_experiments_hpo.py (a second local Ray here would be found by the `--address auto` checks
-# of test_workflow_cli.py running beside this file).
+# an agent with hyper-parameters and a local Ray (minutes each on two cores): their specs parse and
+# plan above, and PB2 itself runs in test_experiments_hpo.py.
 WITH_THEIR_AGENTS = [
     "tabular_cmdp",
     "optgap_cartpole",
     "ecdf_pendulum",
     "baseline_lunarlander_visibility",
+    "baseline_mountaincar_default",
 ]
 PB2_PARSED_ONLY = ["pb2_acrobot", "pb2_lunarlander", "pb2_pendulum"]
 
@@ -80,7 +82,7 @@ def test_figures_run_end_to_end_with_their_agents_at_the_tiny_budget(name, paper
     verdict, report = run_figure(name, "tiny", root=paper_runs, progress=False)
     assert verdict.holds in (True, False, None) and verdict.evidence
     text = report.read_text()
-    assert FIGURES[name].header("Claim").split(":")[0][:40] in text
+    assert html.escape(FIGURES[name].header("Claim").split(":")[0][:40]) in text
     assert f"the claim {verdict.word}" in text
 
 
@@ -105,7 +107,13 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     """Episodes of at most 20 steps earn CartPole returns of at most 20, so no interval of the gap
     reaches 30: "at least 30" does not hold; the paper's 3-state cMDP has its exact gap of 3 (a
     context-oblivious policy must pick one action in the state whose best action the contexts
-    disagree on)."""
+    disagree on). MountainCar's episodes of 20 steps never reach the flag from the valley: the
+    trained agent and the random policy both earn -20, so no feature is judged."""
+    untrained, _ = run_figure(
+        "baseline_mountaincar_default", "tiny", root=paper_runs, progress=False
+    )
+    assert untrained.holds is None and "does not beat a random policy" in untrained.evidence
+    assert "(mean return -20 against -20)" in untrained.evidence
     gap, _ = run_figure("optgap_cartpole", "tiny", root=paper_runs, progress=False)
     assert gap.holds is False and "(95% CI; the claim needs it above 30)" in gap.evidence
     exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)

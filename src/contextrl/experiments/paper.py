@@ -180,6 +180,13 @@ def sensitivity_check(
             drops[feature] = Interval(_drop(matrix, column), float(low), float(high))
         # an untrained (random) agent has no training rows: then nothing is called brittle
         random = float(training["random_return"].mean()) if "random_return" in training else np.nan
+        if random >= default:  # (False for an untrained agent's nan)
+            return Verdict(
+                None,
+                f"the trained agent does not beat a random policy at the default context (mean "
+                f"return {default:.4g} against {random:.4g}) at this budget: no feature can be "
+                "called brittle or harmless",
+            )
         threshold = BRITTLE_FRACTION * (default - random)
         kind = {f: _decide(d, threshold) for f, d in drops.items()}  # True brittle, False harmless
         if harmless or brittle:
