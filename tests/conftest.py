@@ -16,12 +16,13 @@ ROOT = Path(__file__).resolve().parents[1]
 
 xla_cpu_workaround()  # before any test starts JAX's CPU backend (see README, process-wide settings)
 
-# Compiling, not running, is most of the suite's time, and XLA:CPU's fusion emitters are most of the
-# compiling: without them (XLA's older emitters) a Brax parity program compiles in 23 s instead of
-# 40 s and test_brax.py's Hopper and Ant tests take 98 s instead of 159 s, while SAC's Pendulum
-# learning run takes 85 s instead of 92 s. Results differ in the last bits only; the learning tests
-# pin XLA's default numerics for their own programs (tests/learning.py, MEASURED_NUMERICS).
-# Subprocesses that tests start (the CLI, process executors, Ray workers) inherit the flag.
+# Compiling, not running, is most of the suite's time, and XLA:CPU's fusion emitters are much of
+# the compiling: without them (XLA's older emitters) a Brax parity program compiles in 24 s instead
+# of 40 s, and test_brax.py's Hopper and Ant tests take 98 s instead of 159 s. Compiled programs run
+# as fast on MJX but PPO's loop at about 0.55× (benchmarks/bench_compile_flags.py), so the learning
+# tests, which run long, pin XLA's default for their own programs (tests/learning.py,
+# MEASURED_NUMERICS); elsewhere results differ in the last bits only. Subprocesses that tests start
+# (the CLI, process executors, Ray workers) inherit the flag.
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] += " --xla_cpu_use_fusion_emitters=false"
 
