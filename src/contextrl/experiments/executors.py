@@ -385,7 +385,7 @@ def connect(
 
 def _refuse_a_silent_address(address: str | None, timeout: float = 5.0) -> None:
     """A cluster address ``host:port`` where nothing accepts a connection is refused at once, in one
-    line (``ray.init`` would retry it for minutes). ``auto``, ``local`` and ``ray://`` are Ray's."""
+    line (``ray.init`` would keep retrying it). ``auto``, ``local`` and ``ray://`` are Ray's."""
     host, _, port = (address or "").rpartition(":")
     if not host or not port.isdigit() or "://" in address:
         return
