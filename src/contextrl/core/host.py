@@ -26,6 +26,9 @@ class HostEnv(ContextHelpers):
     """
 
     default_max_steps: ClassVar[int]
+    # Set by each host environment's ``__init__`` (they depend on its options, e.g. continuous or not):
+    action_space: Any  # a gymnasium space
+    base_observation_space: Any  # a gymnasium Box holding the original observation in every context
 
     def context_values(self, context: Any) -> dict[str, float]:
         """One unbatched context as plain floats, checked by ``context_space.check`` (type, finite,
@@ -42,16 +45,6 @@ class HostEnv(ContextHelpers):
         return values
 
     # ---- written by each host environment ------------------------------------------------------------
-    @property
-    def action_space(self):
-        """A gymnasium space."""
-        raise NotImplementedError
-
-    @property
-    def base_observation_space(self):
-        """A gymnasium Box holding the original observation for every context inside the bounds."""
-        raise NotImplementedError
-
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:
         """Apply ``context`` to the simulator, start an episode, return the first observation."""
         raise NotImplementedError

@@ -220,12 +220,12 @@ class BipedalWalker(Box2DEnv):
 
     def __init__(self) -> None:
         super().__init__()
-        self._action_space = gymnasium.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
+        self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
         low = np.full(24, -np.inf, np.float32)
         high = np.full(24, np.inf, np.float32)
         low[[8, 13]], high[[8, 13]] = 0.0, 1.0  # foot contacts
         low[14:], high[14:] = 0.0, 1.0  # lidar fractions
-        self._observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        self.base_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         # One world for the instance's life, emptied at each reset in gymnasium's order (its bodies'
         # creation order decides the order of contacts, so episodes after the first match too).
         self.world = Box2D.b2World()
@@ -264,14 +264,6 @@ class BipedalWalker(Box2DEnv):
         self._lidar = _Lidar()
         angles = [1.5 * i / 10.0 for i in range(LIDAR_RAYS)]
         self._ray_directions = [(math.sin(a), -math.cos(a)) for a in angles]
-
-    @property
-    def action_space(self) -> gymnasium.spaces.Box:
-        return self._action_space
-
-    @property
-    def base_observation_space(self) -> gymnasium.spaces.Box:
-        return self._observation_space
 
     # ---- episode ---------------------------------------------------------------------------------
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:

@@ -157,11 +157,11 @@ class LunarLander(Box2DEnv):
         super().__init__()
         self.continuous = continuous
         if continuous:
-            self._action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+            self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         else:
-            self._action_space = gymnasium.spaces.Discrete(4)
+            self.action_space = gymnasium.spaces.Discrete(4)
         unbounded = np.full(6, np.inf, np.float32)
-        self._observation_space = gymnasium.spaces.Box(
+        self.base_observation_space = gymnasium.spaces.Box(
             np.concatenate([-unbounded, [0.0, 0.0]]).astype(np.float32),
             np.concatenate([unbounded, [1.0, 1.0]]).astype(np.float32),
             dtype=np.float32,
@@ -194,14 +194,6 @@ class LunarLander(Box2DEnv):
     @property
     def name(self) -> str:
         return "LunarLanderContinuous" if self.continuous else "LunarLander"
-
-    @property
-    def action_space(self) -> gymnasium.spaces.Space:
-        return self._action_space
-
-    @property
-    def base_observation_space(self) -> gymnasium.spaces.Box:
-        return self._observation_space
 
     # ---- episode ---------------------------------------------------------------------------------
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:

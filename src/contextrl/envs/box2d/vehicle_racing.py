@@ -306,12 +306,12 @@ class VehicleRacing(HostEnv):
         self.continuous = continuous
         self.lap_complete_percent = float(lap_complete_percent)
         if continuous:
-            self._action_space = gymnasium.spaces.Box(
+            self.action_space = gymnasium.spaces.Box(
                 np.array([-1, 0, 0], np.float32), np.array([1, 1, 1], np.float32)
             )
         else:
-            self._action_space = gymnasium.spaces.Discrete(5)
-        self._observation_space = gymnasium.spaces.Box(
+            self.action_space = gymnasium.spaces.Discrete(5)
+        self.base_observation_space = gymnasium.spaces.Box(
             0, 255, (STATE_H, STATE_W, 3), dtype=np.uint8
         )
         os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # headless: no window is ever opened
@@ -331,13 +331,6 @@ class VehicleRacing(HostEnv):
         self._fixtures: dict[str, tuple] = {}
 
     # ---- HostEnv interface ------------------------------------------------------------------------
-    @property
-    def action_space(self):
-        return self._action_space
-
-    @property
-    def base_observation_space(self) -> gymnasium.spaces.Box:
-        return self._observation_space
 
     def reset_physics(self, context: Any, rng: np.random.Generator) -> np.ndarray:
         vehicle_index, turn_rate, width, checkpoint_count = self.episode_values(context)
@@ -420,7 +413,7 @@ class VehicleRacing(HostEnv):
                     f"{self.name}: action must be 3 finite numbers (steer, gas, brake), got {action!r}"
                 )
             return array
-        if not self._action_space.contains(action):
+        if not self.action_space.contains(action):
             raise ValueError(f"{self.name}: action {action!r} is not one of 0..4")
         return int(action)
 

@@ -178,12 +178,12 @@ class DmcEnv(HostEnv):
             for (key, part), end in zip(parts.items(), ends, strict=True)
         }  # where each of the task's observations lies in the flat observation
         observation = self._observation()
-        self._observation_space = gymnasium.spaces.Box(
+        self.base_observation_space = gymnasium.spaces.Box(
             -np.inf, np.inf, shape=observation.shape, dtype=np.float32
         )
         low, high = self._physics.model.actuator_ctrlrange.T.astype(np.float32)
-        self._action_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
-        self._action_shape = self._action_space.shape
+        self.action_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        self._action_shape = self.action_space.shape
         missing = set(self.context_space.names) - set(self._appliers())
         if missing:  # pragma: no cover - a programming error in a domain module
             raise TypeError(f"{self.name}: no way to apply features {sorted(missing)}")
@@ -221,13 +221,6 @@ class DmcEnv(HostEnv):
         }
 
     # ---- HostEnv interface -------------------------------------------------------------------------
-    @property
-    def action_space(self) -> gymnasium.spaces.Box:
-        return self._action_space
-
-    @property
-    def base_observation_space(self) -> gymnasium.spaces.Box:
-        return self._observation_space
 
     @property
     def physics(self):

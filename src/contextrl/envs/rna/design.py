@@ -180,8 +180,8 @@ class RnaDesign(HostEnv):
         self.action_pairs = ACTION_PAIRS if wobble_pairs else ACTION_PAIRS[:4]
         self.render_size = tuple(render_size)
         self.default_max_steps = self.targets.max_length  # at most one action per site
-        self._action_space = gymnasium.spaces.Discrete(len(self.action_pairs))
-        self._observation_space = gymnasium.spaces.Box(
+        self.action_space = gymnasium.spaces.Discrete(len(self.action_pairs))
+        self.base_observation_space = gymnasium.spaces.Box(
             0.0, 1.0, shape=(WINDOW * len(CHANNELS),), dtype=np.float32
         )
         self._offsets = np.arange(-MAX_RADIUS, MAX_RADIUS + 1)
@@ -191,13 +191,6 @@ class RnaDesign(HostEnv):
         self._result: dict[str, Any] | None = None
 
     # ---- HostEnv interface -------------------------------------------------------------------------
-    @property
-    def action_space(self) -> gymnasium.spaces.Discrete:
-        return self._action_space
-
-    @property
-    def base_observation_space(self) -> gymnasium.spaces.Box:
-        return self._observation_space
 
     def target_range(self, values: dict[str, float]) -> tuple[str, int, int]:
         """(data set, first id, last id) of a checked context; ContextError naming an id out of range."""
