@@ -396,34 +396,18 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
 
 
 def train_gymnasium(
-    config: DQNConfig,
-    env_id: str,
-    train_contexts: Any,
-    key,
-    *,
-    seed: int = 0,
-    vectorization: str = "sync",
-    init_params: Any = None,
-    **env_kwargs: Any,
+    config: DQNConfig, env_id: str, train_contexts: Any, key, **options: Any
 ) -> TrainResult:
-    """DQN/C51 on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
+    """DQN/C51 on the host collector (:func:`contextrl.agents.host.train_on_host`, which takes the
+    keyword ``options``: ``seed``, ``vectorization``, ``init_params``, environment options): for host
     environments (RNA design, Box2D…) or any registered id, with the schedule of :func:`make_train`
     (warm-up, then ``train_frequency`` vector steps per gradient step). Returns the same
     ``TrainResult``."""
+    schedule = HostSchedule(
+        config.warmup_steps, config.num_rows, config.updates_per_row, config.train_frequency
+    )
     return train_on_host(
-        "DQN",
-        config,
-        env_id,
-        train_contexts,
-        key,
-        _HostLearner,
-        HostSchedule(
-            config.warmup_steps, config.num_rows, config.updates_per_row, config.train_frequency
-        ),
-        seed=seed,
-        vectorization=vectorization,
-        init_params=init_params,
-        **env_kwargs,
+        "DQN", config, env_id, train_contexts, key, _HostLearner, schedule, **options
     )
 
 

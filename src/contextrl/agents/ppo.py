@@ -352,35 +352,19 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
 
 
 def train_gymnasium(
-    config: PPOConfig,
-    env_id: str,
-    train_contexts: Any,
-    key,
-    *,
-    seed: int = 0,
-    vectorization: str = "sync",
-    init_params: Any = None,
-    **env_kwargs: Any,
+    config: PPOConfig, env_id: str, train_contexts: Any, key, **options: Any
 ) -> TrainResult:
-    """PPO on the host collector (:func:`contextrl.agents.host.train_on_host`): for host environments
-    (dm_control…) or any registered id.
+    """PPO on the host collector (:func:`contextrl.agents.host.train_on_host`, which takes the
+    keyword ``options``: ``seed``, ``vectorization``, ``init_params``, environment options): for host
+    environments (dm_control…) or any registered id.
 
     ``num_envs`` copies take contexts from ``train_contexts`` by ``config.context_selector``; acting
     and every update are compiled, the environment steps on the host. Returns the same
     ``TrainResult`` as :func:`make_train`; slower than the JAX path.
     """
+    schedule = HostSchedule(0, config.num_updates, 1, config.num_steps)
     return train_on_host(
-        "PPO",
-        config,
-        env_id,
-        train_contexts,
-        key,
-        _HostLearner,
-        HostSchedule(0, config.num_updates, 1, config.num_steps),
-        seed=seed,
-        vectorization=vectorization,
-        init_params=init_params,
-        **env_kwargs,
+        "PPO", config, env_id, train_contexts, key, _HostLearner, schedule, **options
     )
 
 

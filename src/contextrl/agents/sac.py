@@ -390,34 +390,18 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
 
 
 def train_gymnasium(
-    config: SACConfig,
-    env_id: str,
-    train_contexts: Any,
-    key,
-    *,
-    seed: int = 0,
-    vectorization: str = "sync",
-    init_params: Any = None,
-    **env_kwargs: Any,
+    config: SACConfig, env_id: str, train_contexts: Any, key, **options: Any
 ) -> TrainResult:
-    """SAC on the host collector (:func:`contextrl.agents.host.train_on_host`): for host
+    """SAC on the host collector (:func:`contextrl.agents.host.train_on_host`, which takes the
+    keyword ``options``: ``seed``, ``vectorization``, ``init_params``, environment options): for host
     environments (dm_control…) or any registered id, with the same schedule as :func:`make_train`
     (warm-up, then ``policy_frequency`` rounds of one vector step and one critic update per actor
     update). Returns the same ``TrainResult``."""
+    schedule = HostSchedule(
+        config.warmup_steps, config.num_rows, config.updates_per_row, config.policy_frequency
+    )
     return train_on_host(
-        "SAC",
-        config,
-        env_id,
-        train_contexts,
-        key,
-        _HostLearner,
-        HostSchedule(
-            config.warmup_steps, config.num_rows, config.updates_per_row, config.policy_frequency
-        ),
-        seed=seed,
-        vectorization=vectorization,
-        init_params=init_params,
-        **env_kwargs,
+        "SAC", config, env_id, train_contexts, key, _HostLearner, schedule, **options
     )
 
 
