@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from contextrl.agents.common import Progress
+from contextrl.analysis import plots
 from contextrl.experiments import RunDir, executors, expand, report, resume, run_experiment
 from contextrl.experiments.executors import ChunkBar, ProgressLines, run_local
 from contextrl.experiments.runs import atomic_write
@@ -94,8 +95,17 @@ PROTOCOLS = [
 
 
 @pytest.mark.parametrize(("data", "expected_sections", "expected_figures"), PROTOCOLS)
-def test_every_protocol_runs_end_to_end(data, expected_sections, expected_figures, tmp_path):
+def test_every_protocol_runs_end_to_end(
+    data, expected_sections, expected_figures, tmp_path, monkeypatch
+):
     spec = {**TINY, "seeds": 2, **data} if data["protocol"] != "tabular" else data
+    heatmaps = []  # each heatmap's title and the training contexts it marks
+    draw = plots.heatmap
+    monkeypatch.setattr(
+        plots,
+        "heatmap",
+        lambda *a, **k: heatmaps.append((k["title"], k.get("train_points"))) or draw(*a, **k),
+    )
     run, summary = run_experiment(spec, out=tmp_path / "run", progress=False)
     assert summary.failed == [] and summary.remaining == []
     assert sections(run) == expected_sections
@@ -113,6 +123,13 @@ def test_every_protocol_runs_end_to_end(data, expected_sections, expected_figure
         html = (run.path / "report.html").read_text()
         fractions = re.search(r"general (\d\.\d\d), specialists (\d\.\d\d)", html).groups()
         assert max(map(float, fractions)) > 0  # someone reaches the best return, though negative
+    if data["protocol"] == "train_test":
+        # the red dots are each mode's training contexts (they once were the test contexts)
+        plan = expand(run.spec())
+        assert [title for title, _ in heatmaps] == ["mode A, hidden", "mode C, hidden"]
+        for (_, marked), mode in zip(heatmaps, ["A", "C"], strict=True):
+            train = plan.sets[f"train-{mode}"].contexts
+            np.testing.assert_allclose(marked, np.stack([train.l, train.g], axis=1))
     if data["protocol"] == "tabular":
         gaps = results.groupby("trial").apply(
             lambda g: (g["optimal_return"] - g["oblivious_return"]).mean(), include_groups=False

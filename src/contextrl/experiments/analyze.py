@@ -327,6 +327,15 @@ def curves_by_label(
     return steps, table
 
 
+def plane_points(cells: pd.DataFrame, x_name: str, y_name: str, by: list[str]) -> pd.DataFrame:
+    """Each context's mean return over seeds on the ``x_name`` × ``y_name`` plane (columns x, y,
+    value): what a return heatmap draws. A context no seed has a return on has nothing to draw."""
+    points = cells.groupby(by).agg(
+        x=(f"ctx.{x_name}", "first"), y=(f"ctx.{y_name}", "first"), value=("return", "mean")
+    )
+    return points.dropna(subset=["value"])
+
+
 def agent_label(frame: pd.DataFrame) -> pd.Series:
     """The variant, prefixed by the trial kind when a run has several kinds (general/specialist…)."""
     if frame["kind"].nunique() > 1:
@@ -481,13 +490,8 @@ def per_context_section(
         low, high = float(cells["return"].min()), float(cells["return"].max())
         frame = cells.assign(agent=agent_label(cells))
         for label in sorted(frame["agent"].unique(), key=natural_key):
-            points = (
-                frame[frame["agent"] == label]
-                .groupby(["test_set", "context"])
-                .agg(
-                    x=(f"ctx.{x_name}", "first"), y=(f"ctx.{y_name}", "first"), v=("return", "mean")
-                )
-                .dropna(subset=["v"])  # a context no seed has a return on has nothing to draw
+            points = plane_points(
+                frame[frame["agent"] == label], x_name, y_name, ["test_set", "context"]
             )
             if points.empty:
                 continue
@@ -497,7 +501,7 @@ def per_context_section(
                     plots.heatmap(
                         points["x"],
                         points["y"],
-                        points["v"],
+                        points["value"],
                         xlabel=x_name,
                         ylabel=y_name,
                         bins=max(2, min(12, int(np.sqrt(len(points))))),

@@ -19,6 +19,7 @@ from contextrl.context.features import ContextError
 from contextrl.experiments.analyze import (
     curves_by_variant,
     figure,
+    plane_points,
     score_intervals,
     score_matrices,
 )
@@ -28,8 +29,8 @@ from contextrl.experiments.spec import (
     SpecError,
     _check_int,
     _check_number,
-    load_yaml,
     merge_features,
+    parse_assignments,
     register_protocol,
 )
 
@@ -91,12 +92,7 @@ class TrainTestSpec(CommonSpec):
 
     @classmethod
     def vary(cls, data: dict, items: list[str]) -> str | None:
-        boxes = {}
-        for item in items:
-            name, sep, value = item.partition("=")
-            if not sep or not name:
-                raise SpecError(f"--vary: expected FEATURE=[LOW,HIGH], got {item!r}")
-            boxes[name] = load_yaml(value, f"--vary {name}")
+        boxes = parse_assignments(items, "--vary", "FEATURE=[LOW,HIGH]")
         return merge_features(data, "train_box", boxes)
 
     def expand(self) -> tuple[dict, list]:
@@ -207,20 +203,12 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
     low, high = float(cells["return"].min()), float(cells["return"].max())
     for mode in spec.modes:
         train = plan.sets[f"train-{mode}"].contexts
-        points = np.stack(
+        train_points = np.stack(
             [np.asarray(getattr(train, name_x)), np.asarray(getattr(train, name_y))], axis=1
         )
         for variant in spec.variants:
             group = cells[(cells["kind"] == f"mode{mode}") & (cells["variant"] == variant)]
-            points = (
-                group.groupby("context")
-                .agg(
-                    x=(f"ctx.{name_x}", "first"),
-                    y=(f"ctx.{name_y}", "first"),
-                    value=("return", "mean"),
-                )
-                .dropna(subset=["value"])  # a context no seed has a return on has nothing to draw
-            )
+            points = plane_points(group, name_x, name_y, ["context"])
             if points.empty:
                 continue
             figures.append(
@@ -233,7 +221,7 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
                         xlabel=name_x,
                         ylabel=name_y,
                         regions=[(x0, x1, y0, y1)],
-                        train_points=points,
+                        train_points=train_points,
                         bins=int(np.sqrt(len(points))),
                         title=f"mode {mode}, {variant}",
                         vmin=low,
