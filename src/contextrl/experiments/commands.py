@@ -30,6 +30,7 @@ from contextrl.experiments.spec import (
     SpecError,
     agent_options_error,
     load_yaml,
+    parse_assignments,
     parse_distribution,
 )
 from contextrl.experiments.tensorboard import TensorBoardLog
@@ -52,16 +53,6 @@ QUICKSTART: dict[str, Any] = {
     "bootstrap_reps": 2000,
 }
 PRESETS = {"quickstart": QUICKSTART}
-
-
-def _assignments(items: list[str], option: str) -> dict[str, Any]:
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise SpecError(f"{option}: expected NAME=VALUE, got {item!r}")
-        out[name] = load_yaml(value, f"{option} {name}")
-    return out
 
 
 def count(text: str) -> int:
@@ -141,7 +132,7 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
         options.update(loaded)
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
-    options.update(_assignments(args.agent_option, "--agent-option"))
+    options.update(parse_assignments(args.agent_option, "--agent-option"))
     if options:
         data["agent_options"] = options
     if args.vary:
@@ -149,11 +140,8 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
         if notice and notices is not None:
             notices.append(notice)
     if args.test:
-        data["test"] = {
-            name: parse_distribution(name, value)
-            for name, value in (v.partition("=")[::2] for v in args.test)
-        }
-    data.update(_assignments(args.set, "--set"))
+        data["test"] = parse_assignments(args.test, "--test", "FEATURE=DIST", parse_distribution)
+    data.update(parse_assignments(args.set, "--set"))
     return data
 
 
@@ -452,12 +440,7 @@ def add_report(subparsers) -> None:
 def eval_command(args: argparse.Namespace) -> int:
     if not args.test:
         raise SpecError("eval: give the new contexts with --test FEATURE=DIST (repeatable)")
-    test = {}
-    for item in args.test:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip() or not value.strip():
-            raise SpecError(f"--test: expected FEATURE=DIST, got {item!r}")
-        test[name.strip()] = parse_distribution(name.strip(), load_yaml(value, f"--test {name}"))
+    test = parse_assignments(args.test, "--test", "FEATURE=DIST", parse_distribution)
     try:
         file, frame = evaluate_run(
             args.run_dir,

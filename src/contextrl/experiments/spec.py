@@ -24,26 +24,17 @@ import yaml
 
 import contextrl as crl
 from contextrl.agents import VARIANTS, ConfigError, get_agent
-from contextrl.context.distributions import (
-    Categorical,
-    Constant,
-    LogUniform,
-    Normal,
-    RelativeUniform,
-    Scaled,
-    Uniform,
-    check_spec,
-)
+from contextrl.context import distributions
 from contextrl.context.features import ContextError
 
 DISTRIBUTION_NAMES = {
-    "uniform": Uniform,
-    "log_uniform": LogUniform,
-    "normal": Normal,
-    "categorical": Categorical,
-    "constant": Constant,
-    "scaled": Scaled,
-    "relative_uniform": RelativeUniform,
+    "uniform": distributions.Uniform,
+    "log_uniform": distributions.LogUniform,
+    "normal": distributions.Normal,
+    "categorical": distributions.Categorical,
+    "constant": distributions.Constant,
+    "scaled": distributions.Scaled,
+    "relative_uniform": distributions.RelativeUniform,
 }
 
 
@@ -119,6 +110,24 @@ def load_yaml(text: str, source: str = "YAML") -> Any:
         raise SpecError(f"{source}: cannot read YAML ({error})") from None
 
 
+def parse_assignments(
+    items: list[str],
+    option: str,
+    form: str = "NAME=VALUE",
+    read: Callable[[str, str], Any] | None = None,
+) -> dict[str, Any]:
+    """Command-line ``NAME=VALUE`` items as ``{name: read(name, value)}`` (by default the value read
+    as YAML): the one reader of ``--set``, ``--agent-option``, ``--vary`` and ``--test``. An item
+    without ``=``, a name or a value is refused in one line naming the option and the ``form``."""
+    out = {}
+    for item in items:
+        name, sep, value = (part.strip() for part in item.partition("="))
+        if not sep or not name or not value:
+            raise SpecError(f"{option}: expected {form}, got {item!r}")
+        out[name] = load_yaml(value, f"{option} {name}") if read is None else read(name, value)
+    return out
+
+
 _HOST_ENVS: dict[str, Any] = {}
 
 
@@ -126,6 +135,8 @@ def parse_distribution(feature: str, value: Any):
     """``{"uniform": [0.25, 0.75]}``, ``"uniform:0.25:0.75"``, a distribution object or a number."""
     if isinstance(value, tuple(DISTRIBUTION_NAMES.values())):
         return value
+    if isinstance(value, str) and value.strip().startswith(("{", "[")):  # YAML on the command line
+        value = load_yaml(value, feature)
     if isinstance(value, str) and ":" in value:
         name, *args = value.split(":")
         try:
@@ -166,10 +177,10 @@ def parse_distribution(feature: str, value: Any):
         )
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise SpecError(f"{feature}: cannot read {value!r} as a distribution or a value")
-    return Constant(value)
+    return distributions.Constant(value)
 
 
-def _categorical(feature: str, args: Any) -> Categorical:
+def _categorical(feature: str, args: Any) -> distributions.Categorical:
     """``[a, b]`` (equal weights), ``{choices: [a, b], weights: [1, 3]}`` or ``{a: 1, b: 3}``."""
     if isinstance(args, Mapping):
         if set(args) <= {"choices", "weights"} and "choices" in args:
@@ -186,8 +197,10 @@ def _categorical(feature: str, args: Any) -> Categorical:
             raise SpecError(
                 f"{feature}: categorical has {len(choices)} choices but {len(weights)} weights"
             )
-        return Categorical(tuple(choices), None if weights is None else tuple(weights))
-    return Categorical(tuple(args if isinstance(args, (list, tuple)) else [args]))
+        return distributions.Categorical(
+            tuple(choices), None if weights is None else tuple(weights)
+        )
+    return distributions.Categorical(tuple(args if isinstance(args, (list, tuple)) else [args]))
 
 
 def distribution_to_yaml(distribution) -> Any:
@@ -354,12 +367,7 @@ class CommonSpec:
         feature on top of what a config gave; returns a notice saying what was kept and replaced."""
         if cls.vary_field is None:
             raise SpecError(f"--vary: the {data['protocol']} protocol varies no features")
-        given = {}
-        for item in items:
-            name, sep, value = item.partition("=")
-            if not sep or not name.strip() or not value.strip():
-                raise SpecError(f"--vary: expected FEATURE=DIST, got {item!r}")
-            given[name.strip()] = parse_distribution(name.strip(), value.strip())
+        given = parse_assignments(items, "--vary", "FEATURE=DIST", parse_distribution)
         return merge_features(data, cls.vary_field, given)
 
     def space(self):
@@ -371,7 +379,7 @@ class CommonSpec:
             raise SpecError(f"{field}: give at least one feature distribution, got {features!r}")
         parsed = {name: parse_distribution(name, value) for name, value in features.items()}
         try:
-            return check_spec(self.space(), parsed)
+            return distributions.check_spec(self.space(), parsed)
         except ContextError as error:
             raise SpecError(f"{field}: {error}") from None
 
