@@ -232,6 +232,16 @@ class EpisodeLog:
             context_count=self.context_count.at[context_slot].add(1, mode="drop"),
         )
 
+    def close_row(
+        self, period: jax.Array, step: jax.Array, progress: Progress
+    ) -> tuple[EpisodeLog, dict[str, jax.Array]]:
+        """:meth:`close_period`'s row stamped with the agent's ``step`` count and reported to
+        ``progress``: how every compiled training loop ends a metrics period."""
+        log, row = self.close_period()
+        row["step"] = step
+        progress.report(period, step, row["episode_return"])
+        return log, row
+
     def close_period(self) -> tuple[EpisodeLog, dict[str, jax.Array]]:
         """This period's curve row and a log with the period cleared.
 

@@ -380,17 +380,13 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
             first = row_index * config.updates_per_row
             carry, losses = jax.lax.scan(update, carry, first + jnp.arange(config.updates_per_row))
             *rest, log, step, key = carry
-            log, metrics = log.close_period()
-            metrics["step"] = step
+            log, metrics = log.close_row(row_index, step, progress)
             metrics["loss"] = losses.mean()
-            progress.report(row_index, step, metrics["episode_return"])
             return (*rest, log, step, key), metrics
 
         carry = (params, params, opt_state, env_state, obs, replay, log, step, key)
         carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
-        params, log = carry[0], carry[6]
-        metrics["episodes"] = log.episodes()
-        return TrainResult(params, metrics)
+        return TrainResult(carry[0], {**metrics, "episodes": carry[6].episodes()})
 
     return train
 

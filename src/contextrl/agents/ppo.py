@@ -337,16 +337,13 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
             )
             last_value = value(params, obs, context_of(env_state.context))
             params, opt_state, key, losses = learn(params, opt_state, rollout, last_value, key)
-            log, row = log.close_period()
-            row["step"] = step
+            log, row = log.close_row(period, step, progress)
             row["actor_loss"], row["value_loss"], row["entropy"] = (x.mean() for x in losses)
-            progress.report(period, step, row["episode_return"])
             return (params, opt_state, env_state, obs, log, step, key), row
 
         carry = (params, opt_state, env_state, timestep.obs, log, jnp.zeros((), jnp.int32), key)
         (params, _, _, _, log, _, _), metrics = jax.lax.scan(update, carry, jnp.arange(num_updates))
-        metrics["episodes"] = log.episodes()
-        return TrainResult(params, metrics)
+        return TrainResult(params, {**metrics, "episodes": log.episodes()})
 
     return train
 

@@ -372,19 +372,15 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
                 update, carry, None, config.updates_per_row
             )
             *rest, log, step, key = carry
-            log, metrics = log.close_period()
-            metrics["step"] = step
+            log, metrics = log.close_row(row_index, step, progress)
             metrics["critic_loss"] = critic_losses.mean()
             metrics["actor_loss"] = actor_losses.mean()
             metrics["alpha"] = alphas[-1]
-            progress.report(row_index, step, metrics["episode_return"])
             return (*rest, log, step, key), metrics
 
         carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
         carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
-        params, log = carry[0], carry[6]
-        metrics["episodes"] = log.episodes()
-        return TrainResult(params, metrics)
+        return TrainResult(carry[0], {**metrics, "episodes": carry[6].episodes()})
 
     return train
 
