@@ -32,7 +32,10 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
-from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, draw_set
+from contextrl.experiments.protocols import (
+    TEST_KEY,
+    train_and_test_sets,
+)
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
@@ -162,15 +165,7 @@ class HPOSpec(CommonSpec):
             raise SpecError(f"search: {error}") from None
 
     def expand(self) -> tuple[dict, list]:
-        train = draw_set(self, "train", self.train, self.num_train_contexts, TRAIN_KEY)
-        test = draw_set(
-            self,
-            "test" if self.test else "train",
-            self.test or self.train,
-            self.num_test_contexts,
-            TEST_KEY,
-        )
-        return {"train": ContextSet("train", train), "test": ContextSet("test", test)}, []
+        return train_and_test_sets(self), []
 
     def progress_row(self, run, plan, results, failures) -> dict:
         return {

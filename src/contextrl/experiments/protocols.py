@@ -103,6 +103,21 @@ def draw_set(spec: CommonSpec, field: str, features: Mapping, n: int, stream: in
     return draw(space, resolved, n, jax.random.fold_in(jax.random.key(spec.seed), stream))
 
 
+def train_and_test_sets(spec: CommonSpec) -> dict[str, ContextSet]:
+    """The ``train`` set (``num_train_contexts`` drawn from ``spec.train``) and the ``test`` set
+    (``num_test_contexts`` from ``spec.test``, or from ``spec.train`` where it gives none), each
+    drawn from its own key stream."""
+    train = draw_set(spec, "train", spec.train, spec.num_train_contexts, TRAIN_KEY)
+    test = draw_set(
+        spec,
+        "test" if spec.test else "train",
+        spec.test or spec.train,
+        spec.num_test_contexts,
+        TEST_KEY,
+    )
+    return {"train": ContextSet("train", train), "test": ContextSet("test", test)}
+
+
 def _chunks(plan_trials: list[Trial], sets: dict[str, ContextSet], size: int) -> list[list[int]]:
     groups: dict[tuple, list[int]] = {}
     stub = Plan(None, sets, plan_trials, [])  # type: ignore[arg-type]

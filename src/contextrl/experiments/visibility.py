@@ -17,7 +17,11 @@ from contextrl.experiments.analyze import (
     score_intervals,
     score_matrices,
 )
-from contextrl.experiments.protocols import TEST_KEY, TRAIN_KEY, ContextSet, Plan, draw_set, grid
+from contextrl.experiments.protocols import (
+    Plan,
+    grid,
+    train_and_test_sets,
+)
 from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
 
 
@@ -51,16 +55,7 @@ class VisibilitySpec(CommonSpec):
 
 
 def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
-    train = draw_set(spec, "train", spec.train, spec.num_train_contexts, TRAIN_KEY)
-    test = draw_set(
-        spec,
-        "test" if spec.test else "train",
-        spec.test or spec.train,
-        spec.num_test_contexts,
-        TEST_KEY,
-    )
-    sets = {"train": ContextSet("train", train), "test": ContextSet("test", test)}
-    return sets, grid(spec, "visibility", "train", "test")
+    return train_and_test_sets(spec), grid(spec, "visibility", "train", "test")
 
 
 def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):

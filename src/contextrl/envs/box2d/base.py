@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from contextrl.context.features import feature
 from contextrl.core.host import HostEnv
 from contextrl.render.canvas import Canvas
 
@@ -71,6 +72,18 @@ class Box2DEnv(HostEnv):
         scale = values["SCALE"]
         box = (x_min, x_min + width / scale, 0.0, height / scale)
         return Canvas(box, width=width, height=height, background=background)
+
+
+def fps_feature() -> Any:
+    """``FPS`` as both gymnasium Box2D tasks declare it: one physics step per action."""
+    return feature(
+        50.0,
+        1.0,
+        500.0,
+        unit="1/s",
+        doc="physics steps (and actions) per second",
+        affects=("dynamics", "observation", "reward"),
+    )
 
 
 def paint_body(canvas: Canvas, body, fill: tuple[int, int, int], outline: tuple[int, int, int]):

@@ -37,7 +37,7 @@ from Box2D.b2 import (
 )
 
 from contextrl.context.features import ContextBase, context_type, feature
-from contextrl.envs.box2d.base import Box2DEnv, paint_body, sign
+from contextrl.envs.box2d.base import Box2DEnv, fps_feature, paint_body, sign
 
 HULL_POLYGON = ((-30, 9), (6, 9), (34, 1), (34, -8), (-30, -8))  # pixels
 GRASS, STUMP, STAIRS, PIT = range(4)  # gymnasium draws each obstacle uniformly from STUMP..PIT
@@ -50,14 +50,7 @@ VELOCITY_ITERATIONS, POSITION_ITERATIONS = 6 * 30, 2 * 30
 class BipedalWalkerContext(ContextBase):
     """Context features of BipedalWalker; the defaults are gymnasium's ``BipedalWalker-v3``."""
 
-    FPS: float = feature(
-        50.0,
-        1.0,
-        500.0,
-        unit="1/s",
-        doc="physics steps (and actions) per second",
-        affects=("dynamics", "observation", "reward"),
-    )
+    FPS: float = fps_feature()
     SCALE: float = feature(
         30.0,
         1.0,

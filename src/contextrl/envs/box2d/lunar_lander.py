@@ -41,7 +41,7 @@ from Box2D.b2 import (
 )
 
 from contextrl.context.features import ContextBase, context_type, feature
-from contextrl.envs.box2d.base import Box2DEnv, paint_body
+from contextrl.envs.box2d.base import Box2DEnv, fps_feature, paint_body
 
 LANDER_POLYGON = ((-14, 17), (-17, 0), (-17, -10), (17, -10), (17, 0), (14, 17))  # pixels
 TERRAIN_CHUNKS = 11
@@ -55,14 +55,7 @@ SHAPE = ("dynamics", "start_state", "observation", "reward")  # features that re
 class LunarLanderContext(ContextBase):
     """Context features of LunarLander; the defaults are gymnasium's ``LunarLander-v3``."""
 
-    FPS: float = feature(
-        50.0,
-        1.0,
-        500.0,
-        unit="1/s",
-        doc="physics steps (and actions) per second",
-        affects=("dynamics", "observation", "reward"),
-    )
+    FPS: float = fps_feature()
     SCALE: float = feature(
         30.0,
         1.0,
