@@ -3,6 +3,10 @@ the best configuration feeds another protocol through --agent-config."""
 
 import contextlib
 import io
+import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -52,6 +56,69 @@ def test_each_round_trains_with_the_rate_pb2_set_unless_annealing_per_round_is_a
         parse_spec({"protocol": "hpo", "agent": "ppo", "agent_options": {"anneal_lr": True}})
     with pytest.raises(SpecError, match="anneal_per_round: the dqn agent has no learning-rate"):
         parse_spec({"protocol": "hpo", "agent": "dqn", "anneal_per_round": True})
+
+
+SHARED_ROUND = """
+import dataclasses, json
+import jax, numpy as np
+from contextrl.experiments import parse_spec
+from contextrl.experiments.hpo import _round_trainer
+
+options = {"num_envs": 4, "num_steps": 32, "hidden_sizes": [8]}
+spec = parse_spec({"protocol": "hpo", "agent": "ppo", "steps_per_round": 256, "agent_options": options})
+env, train_set = spec.make_env(), spec.expand()[0]["train"].contexts
+key = jax.random.key(0)
+
+def leaves(params):
+    return [np.asarray(leaf) for leaf in jax.tree_util.tree_leaves(params)]
+
+def train(**hyper):
+    return leaves(_round_trainer(spec, env, spec._config(hyper), train_set)(key, None))
+
+def constant(**hyper):
+    make_train = spec.agent_entry().make_train(spec._config(hyper), env, train_set)
+    return leaves(jax.jit(lambda k: make_train(k).params)(key))
+
+def same(a, b):
+    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+first = train(learning_rate=1e-3, ent_coef=0.0, clip_eps=0.2)
+events = []
+listen = lambda name, **_: events.append(name)
+jax.monitoring.register_event_listener(listen)
+second = train(learning_rate=3e-3, ent_coef=0.01, clip_eps=0.3)
+jax.monitoring.unregister_event_listener(listen)
+untraceable = {"learning_rate": 3e-3, "log_std_init": -0.5}
+spec = dataclasses.replace(spec, search={name: [-1.0, 1.0] for name in untraceable})
+print(json.dumps({
+    "hits": events.count("/jax/compilation_cache/cache_hits"),
+    "misses": events.count("/jax/compilation_cache/cache_misses"),
+    "as_constants": same(second, constant(learning_rate=3e-3, ent_coef=0.01, clip_eps=0.3)),
+    "values_act": not same(first, second),
+    "untraceable_as_constants": same(train(**untraceable), constant(**untraceable)),
+}))
+"""
+
+
+def test_members_with_other_values_share_one_compiled_round(tmp_path):
+    """The searched values are inputs of the compiled round, not constants: a member with other
+    values runs the program another member compiled (read from the persistent cache, nothing
+    compiled; each member used to compile its own) and trains exactly as with constants. A searched
+    value the agent cannot trace (PPO checks log_std_init's type in Python) stays a constant. Runs in
+    a fresh process with an empty cache, so what the cache held before cannot decide the outcome."""
+    environment = {**os.environ, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run(
+        [sys.executable, "-c", SHARED_ROUND],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    observed = json.loads(done.stdout.strip().splitlines()[-1])
+    assert observed["hits"] >= 1 and observed["misses"] == 0, observed
+    assert observed["as_constants"] and observed["values_act"], observed
+    assert observed["untraceable_as_constants"], observed
 
 
 @pytest.fixture(

@@ -161,7 +161,10 @@ class ConditionedMLP:
 def check_positive(
     name: str, value: Any, *, integer: bool = False, allow_zero: bool = False
 ) -> None:
-    """Refuse a non-finite, wrongly typed, negative (or zero) configuration value with a clear error."""
+    """Refuse a non-finite, wrongly typed, negative (or zero) configuration value with a clear error.
+    A traced value passes: it is a hyper-parameter checked as a number before it was traced."""
+    if isinstance(value, jax.core.Tracer):
+        return
     kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
     if isinstance(value, bool) or not isinstance(value, kinds):
         kind = "an integer" if integer else "a number"
@@ -176,6 +179,8 @@ def check_positive(
 def check_fraction(name: str, value: Any, *, include_one: bool = True) -> None:
     """Refuse a value outside [0, 1] (or [0, 1))."""
     check_positive(name, value, allow_zero=True)
+    if isinstance(value, jax.core.Tracer):
+        return
     if value > 1 or (value == 1 and not include_one):
         raise ConfigError(f"{name} must be in [0, 1{']' if include_one else ')'}, got {value!r}")
 

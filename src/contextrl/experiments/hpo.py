@@ -57,6 +57,12 @@ DEFAULT_SEARCH = {
     "c51": {"learning_rate": [1e-5, 1e-2], "tau": [1e-3, 1.0]},
 }
 BEST_FILE = "best.yaml"
+# What tracing a hyper-parameter raises where an agent needs its value in Python (a shape, a branch).
+TRACING_ERRORS = (
+    jax.errors.ConcretizationTypeError,
+    jax.errors.TracerIntegerConversionError,
+    jax.errors.TracerArrayConversionError,
+)
 
 
 @register_protocol
@@ -252,8 +258,7 @@ def _round_trainer(spec: HPOSpec, env, config, train_set):
     ones), compiled on a JAX environment, on the shared host collector otherwise."""
     agent = spec.agent_entry()
     if not spec.host:
-        make_train = agent.make_train(config, env, train_set)
-        return jax.jit(lambda key, params: make_train(key, None, params).params)
+        return _compiled_round(agent, config, env, train_set, list(spec.bounds()))
     context = host_context_input(spec, spec.variants[0], env, train_set)
     limit = {} if spec.max_steps is None else {"max_steps": spec.max_steps}
 
@@ -270,6 +275,31 @@ def _round_trainer(spec: HPOSpec, env, config, train_set):
             **limit,
         )
         return result.params
+
+    return train
+
+
+def _compiled_round(agent, config, env, train_set, searched: list[str]):
+    """One round of compiled training in which the searched float hyper-parameters are inputs, not
+    constants: every member and every round runs one program, compiled once and read from the
+    persistent cache by the members Ray restarts (with constants, each member's new values meant a
+    new compilation). Where the agent uses a searched value outside arithmetic (a shape, a Python
+    branch), tracing it fails and that hyper-parameter stays a constant."""
+    values = {name: getattr(config, name) for name in searched}
+    traced = {name: value for name, value in values.items() if isinstance(value, float)}
+
+    def train_round(key, params, hyper):
+        make_train = agent.make_train(dataclasses.replace(config, **hyper), env, train_set)
+        return make_train(key, None, params).params
+
+    compiled = jax.jit(train_round)
+    constant = jax.jit(lambda key, params: train_round(key, params, {}))
+
+    def train(key, params):
+        try:
+            return compiled(key, params, traced)
+        except (*TRACING_ERRORS, ConfigError):  # raised while tracing, before anything ran
+            return constant(key, params)
 
     return train
 
