@@ -20,11 +20,11 @@ from test_experiments_aggregation import result_rows  # the rows a run writes, c
 
 from contextrl.analysis import plots
 from contextrl.cli import main
-from contextrl.context.distributions import Constant
+from contextrl.context.distributions import Constant, Uniform
 from contextrl.experiments import RunDir, expand, parse_spec
 from contextrl.experiments.analyze import Scores, score_intervals
 from contextrl.experiments.runs import write_parquet
-from contextrl.experiments.spec import ENV_DEFAULTS, parse_distribution
+from contextrl.experiments.spec import ENV_DEFAULTS, parse_assignments, parse_distribution
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -179,6 +179,27 @@ def test_a_number_on_the_command_line_is_a_number(capsys):
     assert parse_distribution("length", "0.5") == Constant(0.5)
     status, out, err = cli(capsys, "run", "visibility", "--vary", "length=0.5", *DRY)
     assert status == 0 and "train" in out, err
+
+
+@pytest.mark.parametrize(
+    ("option", "item", "form"),
+    [
+        ("--test", "length", "FEATURE=DIST"),
+        ("--vary", "length=", "FEATURE=DIST"),
+        ("--set", "=3", "NAME=VALUE"),
+        ("--agent-option", "num_steps", "NAME=VALUE"),
+    ],
+)
+def test_every_name_value_option_refuses_an_item_without_name_or_value(option, item, form, capsys):
+    """Before: ``--test length`` (no ``=``) reached the distribution reader as the feature "length"
+    with the value "", and ``--set seeds=`` set seeds to None; one reader now checks every such
+    option alike. A distribution written as YAML reads in ``--vary`` as in a spec file."""
+    status, _, err = cli(capsys, "run", "visibility", option, item, *DRY)
+    one_line_error(status, err, f"{option}: expected {form}, got {item!r}")
+    read = parse_assignments(
+        ["length={uniform: [0.3, 0.6]}"], "--vary", "FEATURE=DIST", parse_distribution
+    )
+    assert read == {"length": Uniform(0.3, 0.6)}
 
 
 def test_sensitivity_vary_takes_feature_names(capsys):
