@@ -32,10 +32,7 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
-from contextrl.experiments.protocols import (
-    TEST_KEY,
-    train_and_test_sets,
-)
+from contextrl.experiments.protocols import TEST_KEY, train_and_test_sets
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
@@ -285,8 +282,9 @@ def _compiled_round(agent, config, env, train_set, searched: list[str]):
     persistent cache by the members Ray restarts (with constants, each member's new values meant a
     new compilation). Where the agent uses a searched value outside arithmetic (a shape, a Python
     branch), tracing it fails and that hyper-parameter stays a constant."""
-    values = {name: getattr(config, name) for name in searched}
-    traced = {name: value for name, value in values.items() if isinstance(value, float)}
+    traced = {
+        name: getattr(config, name) for name in searched if isinstance(getattr(config, name), float)
+    }
 
     def train_round(key, params, hyper):
         make_train = agent.make_train(dataclasses.replace(config, **hyper), env, train_set)

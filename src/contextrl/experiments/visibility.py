@@ -17,11 +17,7 @@ from contextrl.experiments.analyze import (
     score_intervals,
     score_matrices,
 )
-from contextrl.experiments.protocols import (
-    Plan,
-    grid,
-    train_and_test_sets,
-)
+from contextrl.experiments.protocols import Plan, grid, train_and_test_sets
 from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
 
 
