@@ -561,7 +561,7 @@ FIGURES = {
             "visibility_dmcwalker",
             better_check("concat_varying", "hidden"),
             {
-                "agent_options": {"total_timesteps": 20000},
+                "agent_options": {"total_timesteps": 60000},
                 "seeds": 2,
                 "max_steps": 200,
                 "num_test_contexts": 20,
