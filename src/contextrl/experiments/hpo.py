@@ -293,11 +293,16 @@ def _compiled_round(agent, config, env, train_set, searched: list[str]):
     compiled = jax.jit(train_round)
     constant = jax.jit(lambda key, params: train_round(key, params, {}))
 
+    use_traced = True
+
     def train(key, params):
-        try:
-            return compiled(key, params, traced)
-        except (*TRACING_ERRORS, ConfigError):  # raised while tracing, before anything ran
-            return constant(key, params)
+        nonlocal use_traced
+        if use_traced:
+            try:
+                return compiled(key, params, traced)
+            except (*TRACING_ERRORS, ConfigError):  # raised while tracing, before anything ran
+                use_traced = False  # later rounds in this process go straight to the constants
+        return constant(key, params)
 
     return train
 
