@@ -1,14 +1,13 @@
-"""dm_control family: stepping speed against dm_control itself, context-switch cost, vector throughput.
+"""dm_control family: stepping speed against dm_control itself, and the cost of a context switch.
 
-    .venv/bin/python benchmarks/bench_dmc.py [--steps 2000] [--switches 300] [--vector-steps 2000]
+    .venv/bin/python benchmarks/bench_dmc.py [--steps 2000] [--switches 300]
 
-Prints three tables:
+Prints two tables (vector throughput on every core: ``benchmarks/bench_host_vector.py``):
 1. steps/s at the default context, random actions: ``dm_control.suite.load(...).step`` against the
    host environment stepped directly and through the gymnasium adapter (ratio to dm_control);
 2. the cost of a context switch at reset: applying a context (check + model writes) and a whole reset
    alternating between two contexts, against a reset that keeps the context; plus a geometry switch
-   (Finger, recompiles) and a rebuild of the model from XML (``suite.load``: what CARL does per switch);
-3. steps/s of gymnasium's AsyncVectorEnv with 2 spawned worker processes against one env in-process.
+   (Finger, recompiles) and a rebuild of the model from XML (``suite.load``: what CARL does per switch).
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ import numpy as np  # noqa: E402
 from dm_control import suite  # noqa: E402
 
 from contextrl.envs import dmc  # noqa: E402
-from contextrl.gymnasium import ContextualGymEnv, make_vector_env  # noqa: E402
+from contextrl.gymnasium import ContextualGymEnv  # noqa: E402
 
 SWITCH_CONTEXTS = {  # two non-geometry contexts per domain, alternated at every reset
     "walker": ({"viscosity": 0.0}, {"viscosity": 1.5, "geom_density": 1.5, "gravity": 5.0}),
@@ -89,24 +88,10 @@ def switching(cls, count: int) -> tuple[float, float, float]:
     return apply_ms, switch_ms, same_ms
 
 
-def vector_rate(steps: int) -> tuple[float, float]:
-    """Steps/s (summed over copies) of 2 spawned workers, and of one env in this process."""
-    envs = make_vector_env("DmcWalker", num_envs=2)  # AsyncVectorEnv, spawned workers
-    envs.reset(seed=0)
-    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2, 6)).astype(np.float32)  # walker
-    vector = 2 * rate(lambda i: envs.step(actions[i]), steps)
-    envs.close()
-    single_env = ContextualGymEnv("DmcWalker")
-    single_env.reset(seed=0)
-    single = rate(lambda i: single_env.step(actions[i, 0]), steps)
-    return vector, single
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--switches", type=int, default=300)
-    parser.add_argument("--vector-steps", type=int, default=2000)
     args = parser.parse_args()
     print(f"CPU cores: {os.cpu_count()}\n")
 
@@ -138,12 +123,6 @@ def main() -> None:
     rebuild_ms = 1e3 / rate(lambda i: suite.load("walker", "walk"), count)
     print(f"DmcFinger reset switching spinner_length (recompiles): {geometry_ms:.2f} ms")
     print(f"walker rebuilt from XML with suite.load (CARL's way, per switch): {rebuild_ms:.2f} ms")
-
-    print("\n3. vector throughput, DmcWalker through gymnasium (steps/s over all copies)")
-    vector, single = vector_rate(args.vector_steps)
-    print(f"AsyncVectorEnv, 2 spawned workers: {vector:.0f}")
-    print(f"one env in this process:           {single:.0f}")
-    print(f"ratio:                             {vector / single:.2f}")
 
 
 if __name__ == "__main__":

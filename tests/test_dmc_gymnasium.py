@@ -68,8 +68,9 @@ def test_vector_env_with_two_worker_processes_gives_each_copy_its_context():
         num_envs=2,
         contexts=[{"spinner_length": 0.18}, {"spinner_length": 0.3}],
         obs_context_features=["spinner_length"],
+        num_workers=1,
     )
-    assert isinstance(envs, gymnasium.vector.AsyncVectorEnv)  # worker processes
+    assert envs.unwrapped.num_workers == 1  # the second copy steps in a worker process
     obs, info = envs.reset(seed=0)
     np.testing.assert_allclose(obs[:, -1], [0.18, 0.3], rtol=1e-6)
     for _ in range(5):

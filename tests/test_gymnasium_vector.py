@@ -6,7 +6,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import contextrl as crl
-from contextrl.gymnasium import ContextualVectorEnv, make_vector_env
+from contextrl.gymnasium import ContextualVectorEnv, HostVectorEnv, make_vector_env
 
 LENGTHS = [{"length": 0.25}, {"length": 1.0}]
 
@@ -119,12 +119,12 @@ def test_host_envs_run_as_gymnasium_vector_envs_with_a_context_per_copy(vectoriz
         env_id,
         num_envs=2,
         vectorization=vectorization,
+        **({"num_workers": 1} if vectorization == "async" else {}),
         contexts=[{feature.name: v} for v in values],
         obs_context_features="varying",
     )
-    assert (
-        type(envs).__name__ == {"sync": "SyncVectorEnv", "async": "AsyncVectorEnv"}[vectorization]
-    )
+    assert isinstance(envs, HostVectorEnv)
+    assert envs.num_workers == {"sync": 0, "async": 1}[vectorization]
     assert envs.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
     obs, info = envs.reset(seed=0)
     np.testing.assert_array_equal(info["context_id"], [0, 1])

@@ -5,7 +5,8 @@ public vector API, for environments that are not JAX functions (dm_control, Box2
     step = collector.step(env_actions)      # obs, context input, rewards, ends, final observations
 
 The collector owns what every agent's host training needs and nothing algorithm-specific: the vector
-env (``gymnasium.make_vec("contextrl/<Id>-v0", num_envs=N, contexts=...)``, same-step auto-reset), the
+env (``gymnasium.make_vec("contextrl/<Id>-v0", num_envs=N, contexts=...)``, same-step auto-reset, its
+copies stepped in slices on every core once there are enough of them; ``num_workers=`` sets it), the
 agent's context input read from ``info["context"]`` and normalised by the feature bounds as on the JAX
 path, and the episode bookkeeping behind training curves (the JAX path's :class:`EpisodeLog`).
 :func:`train_on_host` is the one training loop over it (warm-up, rows of updates, metrics, progress);
@@ -73,7 +74,7 @@ class HostCollector:
         *,
         selector: str = "random",
         seed: int = 0,
-        vectorization: str = "sync",
+        vectorization: str = "async",
         context: ContextInput | None = None,
         episode_log_size: int = 1000,
         **env_kwargs: Any,
@@ -250,7 +251,7 @@ def train_on_host(
     schedule: HostSchedule,
     *,
     seed: int = 0,
-    vectorization: str = "sync",
+    vectorization: str = "async",
     init_params: Any = None,
     **env_kwargs: Any,
 ) -> TrainResult:

@@ -7,6 +7,7 @@ envs = gymnasium.make_vec("contextrl/CartPole-v0", num_envs=64, contexts=batch)
 
 from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule, resolve_contexts
 from contextrl.gymnasium.env import ContextualGymEnv
+from contextrl.gymnasium.host_vector import HostVectorEnv
 from contextrl.gymnasium.registration import gym_id, register_envs
 from contextrl.gymnasium.vector import ContextualVectorEnv, make_vector_env
 
@@ -15,6 +16,7 @@ __all__ = [
     "ContextSchedule",
     "ContextualGymEnv",
     "ContextualVectorEnv",
+    "HostVectorEnv",
     "gym_id",
     "make_vector_env",
     "register_envs",

@@ -9,12 +9,11 @@ of the ended episode is in ``info["final_obs"][i]`` (``info["_final_obs"][i]`` i
 core's own convention, so no step is wasted on a reset. Copy ``i`` takes the context of global episode
 ``i + e × num_envs`` from the selector at its ``e``-th episode: with round robin over N contexts and N
 copies, copy ``i`` always runs context ``i``. Host environments (CPU simulators) get the same interface
-from gymnasium's ``AsyncVectorEnv`` of single adapters (see :func:`make_vector_env`).
+from worker processes that each step a slice of the copies (see :func:`make_vector_env`).
 """
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -38,7 +37,6 @@ from contextrl.gymnasium.backends import (
     shared_program,
 )
 from contextrl.gymnasium.env import (
-    ContextualGymEnv,
     build_setup,
     check_count,
     observation_space,
@@ -47,6 +45,7 @@ from contextrl.gymnasium.env import (
     run_key_bits,
     split_observation,
 )
+from contextrl.gymnasium.host_vector import HostVectorEnv
 
 
 class VectorPrograms:
@@ -351,33 +350,36 @@ def make_vector_env(
     num_envs: int = 1,
     vectorization: str = "async",
     max_episode_steps: int | None = None,
+    num_workers: int | None = None,
     **kwargs: Any,
 ) -> gymnasium.vector.VectorEnv:
-    """A vector env for any registered id: one compiled call for JAX envs, processes for host envs.
+    """A vector env for any registered id: one compiled call for JAX envs, worker processes for host
+    envs.
 
-    Host copies are single adapters in gymnasium's ``AsyncVectorEnv`` (or ``SyncVectorEnv`` with
-    ``vectorization="sync"``), copy ``i`` taking the set's contexts as described above, with the same
-    ``SAME_STEP`` auto-reset. ``max_episode_steps`` is accepted for ``gymnasium.make_vec`` and becomes
-    ``max_steps`` when given.
+    Host copies are stepped by :class:`~contextrl.gymnasium.host_vector.HostVectorEnv`:
+    ``vectorization="async"`` in ``num_workers`` processes (None: one per available core, at most one
+    per copy), ``"sync"`` in this process; copy ``i`` takes the set's contexts as described above, with
+    the same ``SAME_STEP`` auto-reset. ``max_episode_steps`` is accepted for ``gymnasium.make_vec`` and
+    becomes ``max_steps`` when given.
     """
     if max_episode_steps is not None:
         kwargs.setdefault("max_steps", max_episode_steps)
-    if not spec(env_id).host:
-        return ContextualVectorEnv(env_id, num_envs, **kwargs)
     if vectorization not in ("async", "sync"):
         raise ValueError(f"vectorization must be 'async' or 'sync', got {vectorization!r}")
-    check_count("num_envs", num_envs)
-    ContextualGymEnv(env_id, **kwargs).close()  # validate every argument here, not in N workers
-    factories = [
-        functools.partial(ContextualGymEnv, env_id, copy_index=i, num_copies=num_envs, **kwargs)
-        for i in range(num_envs)
-    ]
+    if not spec(env_id).host:
+        if num_workers is not None:
+            raise ValueError(
+                f"{env_id} steps its copies in one compiled call; num_workers is for "
+                "host environments"
+            )
+        return ContextualVectorEnv(env_id, num_envs, **kwargs)
     if vectorization == "sync":
-        return gymnasium.vector.SyncVectorEnv(factories, autoreset_mode=AutoresetMode.SAME_STEP)
-    # "spawn": JAX is multithreaded, so forking a process that has used it can deadlock.
-    return gymnasium.vector.AsyncVectorEnv(
-        factories, autoreset_mode=AutoresetMode.SAME_STEP, context="spawn"
-    )
+        if num_workers not in (None, 0):
+            raise ValueError(
+                f'vectorization="sync" steps in this process; got num_workers={num_workers}'
+            )
+        num_workers = 0
+    return HostVectorEnv(env_id, num_envs, num_workers=num_workers, **kwargs)
 
 
 __all__ = ["ContextualVectorEnv", "make_vector_env"]
