@@ -130,3 +130,24 @@ def test_default_workers_use_every_core_while_each_slice_keeps_eight_copies(monk
     monkeypatch.setattr(host_vector.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
     counts = {copies: host_vector.default_workers(copies) for copies in (1, 8, 15, 16, 24, 64)}
     assert counts == {1: 0, 8: 0, 15: 0, 16: 1, 24: 2, 64: 3}
+
+
+def test_the_host_collector_steps_alike_with_and_without_workers():
+    """The agents' host collector on worker slices: the same steps, context input and curve row."""
+    from contextrl.agents.host import HostCollector
+
+    contexts = [{"GRAVITY_Y": g} for g in (-11.0, -7.0, -3.0)]
+    collectors = [
+        HostCollector("LunarLander", 16, contexts, "concat_all", seed=2, num_workers=workers)
+        for workers in (0, 1)
+    ]
+    actions = np.random.default_rng(3).integers(0, 4, (120, 16))
+    for action in actions:
+        here, split = (collector.step(action) for collector in collectors)
+        for name in ("reward", "terminated", "truncated", "final_obs", "obs", "context"):
+            np.testing.assert_array_equal(getattr(split, name), getattr(here, name), err_msg=name)
+    rows = [collector.close_period() for collector in collectors]
+    assert rows[0]["episodes_finished"] > 0
+    assert_same(rows[1], rows[0])
+    for collector in collectors:
+        collector.close()
