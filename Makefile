@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test run bench docs docs-gifs lint lock
+.PHONY: install system-deps test run bench bench-all docs docs-gifs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -44,6 +44,20 @@ run: install
 # The environment speed tables; also written as Markdown where the docs' benchmarks page includes them.
 bench: install
 	$(PY) benchmarks/bench_envs.py --markdown benchmarks/results/envs.md
+
+# Every speed table of docs/benchmarks.md, one script after another, each printing its table (with the
+# load average and peers' versions) into benchmarks/results/latest/<script>.txt. Hours on 2 cores: the
+# agent, findings and optimality-gap scripts train many agents. Peers' environments are built on first use.
+BENCH_TABLES := bench_envs bench_gymnasium bench_faces bench_box2d bench_host_vector bench_dmc \
+	bench_vehicle_racing bench_rna bench_platformer bench_brax bench_compile_cache bench_compile_flags \
+	bench_agents bench_sac_host learning_curves bench_findings bench_optimality_gap
+
+bench-all: install
+	mkdir -p benchmarks/results/latest
+	for script in $(BENCH_TABLES); do \
+		echo "== benchmarks/$$script.py"; \
+		$(PY) benchmarks/$$script.py | tee benchmarks/results/latest/$$script.txt || exit 1; \
+	done
 
 # The documentation site (docs/, mkdocs.yml) into site/; --strict turns a broken link, a missing page or a
 # docstring the API reference cannot read into an error. The family pages' feature tables are generated

@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -47,6 +48,10 @@ _CONTEXT_KEYS = (
 # Copies a slice needs before a worker pays off: a step's round trip to a worker costs about 0.2-0.3 ms
 # on a 2-core machine, as much as stepping 8 LunarLanders (benchmarks/bench_host_vector.py).
 MIN_COPIES_PER_SLICE = 8
+# How long a worker polls for the next command, and the caller for an answer, before sleeping, while
+# there is a core per slice: the next step's command usually comes within a millisecond, and waking a
+# sleeping process costs 0.1-0.2 ms. With more slices than cores, polling would take a core from a slice.
+_WORKER_SPIN, _CALLER_SPIN = 0.001, 0.002
 
 
 def default_workers(num_envs: int) -> int:
@@ -54,6 +59,16 @@ def default_workers(num_envs: int) -> int:
     ``MIN_COPIES_PER_SLICE`` copies (this process steps the first slice itself)."""
     slices = min(len(os.sched_getaffinity(0)), num_envs // MIN_COPIES_PER_SLICE)
     return max(0, slices - 1)
+
+
+def _wait(pipe, spin: float) -> None:
+    """Return once ``pipe`` has a message: polled for ``spin`` seconds, then waited for asleep (a
+    sleeping process takes 0.1-0.2 ms to wake, as long as stepping a few copies)."""
+    deadline = time.perf_counter() + spin
+    while not pipe.poll():
+        if time.perf_counter() > deadline:
+            pipe.poll(None)
+            return
 
 
 def _put(buffer: Any, index: int, value: Any) -> None:
@@ -141,7 +156,7 @@ class Slice:
             env.close()
 
 
-def _worker(pipe, parent_pipe, factories, start, memory, space, num_envs) -> None:
+def _worker(pipe, parent_pipe, factories, start, memory, space, num_envs, spin) -> None:
     """A worker process: builds its slice, then answers (command, data) until "close"."""
     parent_pipe.close()
     part = None
@@ -150,6 +165,7 @@ def _worker(pipe, parent_pipe, factories, start, memory, space, num_envs) -> Non
         part = Slice(factories.fn, start, buffer)
         pipe.send((True, None))
         while True:
+            _wait(pipe, spin)
             command, data = pipe.recv()
             if command == "close":
                 pipe.send((True, None))
@@ -225,6 +241,8 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
             self._buffer = read_from_shared_memory(
                 self.single_observation_space, memory, self.num_envs
             )
+        polls = len(self._slices) <= len(os.sched_getaffinity(0))
+        self._spin = _CALLER_SPIN if polls else 0.0
         for copies in self._slices[1:]:
             parent, child = spawn.Pipe()
             process = spawn.Process(
@@ -238,6 +256,7 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
                     memory,
                     self.single_observation_space,
                     self.num_envs,
+                    _WORKER_SPIN if polls else 0.0,
                 ),
                 daemon=True,
             )
@@ -255,6 +274,7 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
         answers, error = [], None
         for index, pipe in enumerate(self._pipes):
             try:
+                _wait(pipe, self._spin)
                 ok, value = pipe.recv()
             except EOFError:
                 ok, value = False, self._stopped(index)
