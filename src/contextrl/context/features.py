@@ -9,6 +9,7 @@ checker all read those declarations, so they can never disagree.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 from collections.abc import Callable, Mapping
@@ -76,6 +77,8 @@ class Feature:
             raise ContextError(
                 f"{self.name}: expected a scalar or a 1-D batch, got shape {array.shape}"
             )
+        if array.ndim == 0:
+            return self._coerce_one(array, value)
         if not np.all(np.isfinite(array)):
             bad = array[~np.isfinite(array)].flat[0]  # the value itself, not the container's repr
             raise ContextError(f"{self.name}: value {bad:g} is not finite (NaN or inf)")
@@ -89,6 +92,30 @@ class Feature:
             bad = np.min(array) if low < lower else np.max(array)
             raise ContextError(
                 f"{self.name}: value {bad:g} is outside its bounds [{self.lower:g}, {self.upper:g}]"
+            )
+        return stored
+
+    @functools.cached_property
+    def _stored_bounds(self) -> tuple[float, float]:
+        """The bounds at the precision a context holds them (as :meth:`coerce` compares)."""
+        dtype = np.float32 if self.kind == "float" else np.int32
+        lower, upper = np.asarray([self.lower, self.upper]).astype(dtype).tolist()
+        return lower, upper
+
+    def _coerce_one(self, array: np.ndarray, value: Any) -> np.ndarray:
+        """:meth:`coerce`'s checks for one value, on Python numbers (a host environment checks
+        every feature at every reset; NumPy reductions would cost microseconds each)."""
+        number = array.item()
+        if not math.isfinite(number):
+            raise ContextError(f"{self.name}: value {number:g} is not finite (NaN or inf)")
+        if self.kind != "float" and round(number) != number:
+            raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
+        stored = array.astype(np.float32 if self.kind == "float" else np.int32)
+        lower, upper = self._stored_bounds
+        if not lower <= stored.item() <= upper:
+            raise ContextError(
+                f"{self.name}: value {number:g} is outside its bounds "
+                f"[{self.lower:g}, {self.upper:g}]"
             )
         return stored
 
