@@ -46,3 +46,28 @@ def run_peer(peer: tuple[str, Sequence[str], str], script: str, *args: object) -
         env={**os.environ, "PYTHONWARNINGS": "ignore"},
     )
     return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+# envpool stepping ``copies`` copies of ``task`` in one batch on ``threads`` threads under seeded random
+# actions; prints copy-steps/s. Arguments: task, copies, threads, calls.
+ENVPOOL_STEPS = """
+import json, sys, time
+import numpy as np
+import envpool
+task, copies, threads, calls = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+envs = envpool.make(task, env_type="gymnasium", num_envs=copies, batch_size=copies,
+                    num_threads=threads, thread_affinity_offset=-1, seed=0)
+envs.reset()
+space = envs.action_space
+rng = np.random.default_rng(0)
+if hasattr(space, "n"):
+    actions = rng.integers(0, space.n, (calls, copies))
+else:
+    actions = rng.uniform(space.low, space.high, (calls, copies, *space.shape)).astype(np.float32)
+for action in actions[:10]:
+    envs.step(action)
+start = time.perf_counter()
+for action in actions:
+    envs.step(action)
+print(json.dumps({"steps_per_s": calls * copies / (time.perf_counter() - start)}))
+"""

@@ -28,7 +28,7 @@ import contextrl
 from contextrl.envs.box2d import BipedalWalker, LunarLander
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _peers import CARL_BOX2D, ENVPOOL, run_peer  # noqa: E402
+from _peers import CARL_BOX2D, ENVPOOL, ENVPOOL_STEPS, run_peer  # noqa: E402
 
 CONTEXTS = {  # a non-default context per environment, the same for CARL
     "LunarLander": {"GRAVITY_Y": -5.0, "MAIN_ENGINE_POWER": 20.0, "LEG_SPRING_TORQUE": 60.0},
@@ -62,28 +62,6 @@ run(actions[:500])
 start = time.perf_counter()
 run(actions)
 print(json.dumps({"steps_per_s": steps / (time.perf_counter() - start)}))
-"""
-
-ENVPOOL_SCRIPT = """
-import json, sys, time
-import numpy as np
-import envpool
-task, copies, calls = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-envs = envpool.make(task, env_type="gymnasium", num_envs=copies, batch_size=copies, num_threads=1,
-                    thread_affinity_offset=-1, seed=0)
-envs.reset()
-space = envs.action_space
-rng = np.random.default_rng(0)
-if hasattr(space, "n"):
-    actions = rng.integers(0, space.n, (calls, copies))
-else:
-    actions = rng.uniform(space.low, space.high, (calls, copies, *space.shape)).astype(np.float32)
-for action in actions[:20]:
-    envs.step(action)
-start = time.perf_counter()
-for action in actions:
-    envs.step(action)
-print(json.dumps({"steps_per_s": calls * copies / (time.perf_counter() - start)}))
 """
 
 
@@ -244,7 +222,7 @@ def main(argv=None) -> None:
         ours = vector(name, copies, args.vector_calls)
         peer = None
         if not args.skip_peers:
-            peer = run_peer(ENVPOOL, ENVPOOL_SCRIPT, ORIGINALS[name], copies, args.vector_calls)
+            peer = run_peer(ENVPOOL, ENVPOOL_STEPS, ORIGINALS[name], copies, 1, args.vector_calls)
             peer = peer["steps_per_s"]
         ratio = f"{ours / peer:.2f}" if peer else "-"
         rows.append([name, f"{ours:.3g}", f"{peer:.3g}" if peer else "-", ratio])

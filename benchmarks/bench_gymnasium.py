@@ -22,25 +22,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _peers import CARL, ENVPOOL, run_peer  # noqa: E402
+from _peers import CARL, ENVPOOL, ENVPOOL_STEPS, run_peer  # noqa: E402
 
 VECTOR_SIZES = (8, 64, 1024)
-
-ENVPOOL_SCRIPT = """
-import json, sys, time
-import numpy as np
-import envpool
-copies, calls = int(sys.argv[1]), int(sys.argv[2])
-env = envpool.make_gymnasium("CartPole-v1", num_envs=copies, num_threads=1, seed=0)
-env.reset()
-actions = np.random.default_rng(0).integers(0, 2, (calls, copies))
-for action in actions[:20]:
-    env.step(action)
-start = time.perf_counter()
-for action in actions:
-    env.step(action)
-print(json.dumps({"steps_per_s": calls * copies / (time.perf_counter() - start)}))
-"""
 
 CARL_SCRIPT = """
 import json, sys, time, warnings
@@ -68,7 +52,9 @@ def bench_carl(steps: int) -> float:
 
 
 def bench_envpool(num_envs: int, steps: int) -> float:
-    return run_peer(ENVPOOL, ENVPOOL_SCRIPT, num_envs, max(50, steps // num_envs))["steps_per_s"]
+    return run_peer(ENVPOOL, ENVPOOL_STEPS, "CartPole-v1", num_envs, 1, max(50, steps // num_envs))[
+        "steps_per_s"
+    ]
 
 
 def bench_single(env, steps: int) -> float:

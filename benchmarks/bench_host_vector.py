@@ -30,7 +30,7 @@ from gymnasium.vector import AutoresetMode
 from contextrl.gymnasium import ContextualGymEnv, HostVectorEnv
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _peers import ENVPOOL, run_peer  # noqa: E402
+from _peers import ENVPOOL, ENVPOOL_STEPS, run_peer  # noqa: E402
 
 CONTEXTS = {  # (feature, low, high): copy i takes the i-th of evenly spaced values
     "LunarLander": ("GRAVITY_Y", -12.0, -2.0),
@@ -43,28 +43,6 @@ ENVPOOL_TASKS = {
     "BipedalWalker": "BipedalWalker-v3",
     "DmcWalker": "WalkerWalk-v1",
 }
-
-ENVPOOL_SCRIPT = """
-import json, sys, time
-import numpy as np
-import envpool
-task, copies, threads, calls = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-envs = envpool.make(task, env_type="gymnasium", num_envs=copies, batch_size=copies,
-                    num_threads=threads, seed=0)
-envs.reset()
-space = envs.action_space
-rng = np.random.default_rng(0)
-if hasattr(space, "n"):
-    actions = rng.integers(0, space.n, (calls, copies))
-else:
-    actions = rng.uniform(space.low, space.high, (calls, copies, *space.shape)).astype(np.float32)
-for action in actions[:5]:
-    envs.step(action)
-start = time.perf_counter()
-for action in actions:
-    envs.step(action)
-print(json.dumps({"steps_per_s": calls * copies / (time.perf_counter() - start)}))
-"""
 
 
 def contexts(name: str, copies: int) -> list[dict]:
@@ -119,7 +97,7 @@ def envpool_rate(name: str, copies: int, threads: int) -> float | None:
         return None
     calls = max(8, 4096 // copies)
     runs = [
-        run_peer(ENVPOOL, ENVPOOL_SCRIPT, ENVPOOL_TASKS[name], copies, threads, calls)
+        run_peer(ENVPOOL, ENVPOOL_STEPS, ENVPOOL_TASKS[name], copies, threads, calls)
         for _ in range(2)
     ]
     return statistics.mean(run["steps_per_s"] for run in runs)
