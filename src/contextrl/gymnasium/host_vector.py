@@ -1,19 +1,21 @@
-"""The vector gymnasium environment of host simulators: copies stepped in slices, one worker per core.
+"""The vector gymnasium environment of host simulators: copies stepped in slices, a slice per core.
 
-    envs = gymnasium.make_vec("contextrl/LunarLander-v3", num_envs=64, contexts=...)   # a worker per core
+    envs = gymnasium.make_vec("contextrl/LunarLander-v0", num_envs=64, contexts=...)  # core slices
 
-Each worker process owns a contiguous slice of the copies: single adapters with their copy indices, so
-copy ``i`` still asks the selector for global episode ``i + e × num_envs`` and reset seed ``seed + i``,
-exactly as in gymnasium's ``SyncVectorEnv`` of the same adapters (the results are equal, step by step).
-Observations travel in shared memory; a step sends each worker its actions and gets back rewards,
-flags and, only for copies whose episode ended, the ended episode's last observation and info and the
-new episode's context. ``info`` keeps gymnasium's vector layout (``info["context"][name][i]``, masks,
-``final_obs``/``final_info`` with ``SAME_STEP`` auto-reset), and its context part is rebuilt only for
-the copies whose episode changed.
+This process steps the first contiguous slice of the copies and each worker process one more:
+single adapters with their copy indices, so copy ``i`` still asks the selector for global episode
+``i + e × num_envs`` and resets with seed ``seed + i``, exactly as in gymnasium's
+``SyncVectorEnv`` of the same adapters (the results are equal, step by step). Observations travel
+in shared memory; a step sends each worker its actions and gets back rewards, flags and, only for
+copies whose episode ended, the ended episode's last observation and info and the new episode's
+context. ``info`` keeps gymnasium's vector layout (``info["context"][name][i]``, masks,
+``final_obs``/``final_info`` with ``SAME_STEP`` auto-reset), and its context part is rebuilt only
+for the copies whose episode changed.
 
 gymnasium's ``AsyncVectorEnv`` runs one process per copy and merges every copy's info dict at every
-step; its worker protocol (one env per pipe, scalar ``terminated``) does not carry a slice of copies,
-so the workers here are our own, built from its shared-memory helpers and its spawn-safe pickling.
+step; its worker protocol (one env per pipe, scalar ``terminated``) does not carry a slice of
+copies, so the workers here are our own, built from its shared-memory helpers and its spawn-safe
+pickling.
 """
 
 from __future__ import annotations
@@ -39,18 +41,17 @@ from gymnasium.vector.utils import (
 from contextrl.gymnasium.backends import action_check
 from contextrl.gymnasium.env import ContextualGymEnv, check_count
 
-_CONTEXT_KEYS = (
-    "context_id",
-    "context",
-)  # an episode's own keys of ``info``; the rest are step facts
+# An episode's own keys of a copy's ``info``; the others are the environment's facts of the step.
+_CONTEXT_KEYS = ("context_id", "context")
 
 
-# Copies a slice needs before a worker pays off: a step's round trip to a worker costs about 0.2-0.3 ms
-# on a 2-core machine, as much as stepping 8 LunarLanders (benchmarks/bench_host_vector.py).
+# Copies a slice needs before a worker pays off: a step's round trip to a worker costs about
+# 0.2-0.3 ms on a 2-core machine, as much as stepping 8 LunarLanders (bench_host_vector.py).
 MIN_COPIES_PER_SLICE = 8
-# How long a worker polls for the next command, and the caller for an answer, before sleeping, while
-# there is a core per slice: the next step's command usually comes within a millisecond, and waking a
-# sleeping process costs 0.1-0.2 ms. With more slices than cores, polling would take a core from a slice.
+# How long a worker polls for the next command, and the caller for an answer, before sleeping,
+# while there is a core per slice: the next step's command usually comes within a millisecond, and
+# waking a sleeping process costs 0.1-0.2 ms. With more slices than cores, polling would take a
+# core from a slice.
 _WORKER_SPIN, _CALLER_SPIN = 0.001, 0.002
 
 
@@ -72,7 +73,7 @@ def _wait(pipe, spin: float) -> None:
 
 
 def _put(buffer: Any, index: int, value: Any) -> None:
-    """Write one copy's observation into row ``index`` of a batched buffer (a Dict space's by key)."""
+    """Write one copy's observation into row ``index`` of a batch (a Dict space's key by key)."""
     if isinstance(buffer, dict):
         for key, part in buffer.items():
             _put(part, index, value[key])
@@ -104,8 +105,8 @@ def _deep_copy(info: dict[str, Any]) -> dict[str, Any]:
 
 
 class Slice:
-    """Copies ``start … start + k − 1`` of a vector env, stepped one after another with ``SAME_STEP``
-    auto-reset; observations go into ``buffer`` (the vector's batch, or its shared memory)."""
+    """Copies ``start … start + k − 1`` of a vector env, stepped one after another with
+    ``SAME_STEP`` auto-reset; observations go into ``buffer`` (the batch, or its shared memory)."""
 
     def __init__(self, factories: Sequence[Callable[[], ContextualGymEnv]], start: int, buffer):
         self.envs = [factory() for factory in factories]
@@ -191,8 +192,9 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
 
     ``env_kwargs`` are the single adapter's arguments (contexts, selector, context observation…);
     ``num_workers=None`` uses every core this process may use, a worker per further core, as long as
-    each slice keeps ``MIN_COPIES_PER_SLICE`` copies. Stepping a slice here instead of waiting for a further worker keeps the calling
-    process busy while the workers step, so no step waits for it to be woken.
+    each slice keeps ``MIN_COPIES_PER_SLICE`` copies. Stepping a slice here, instead of waiting
+    for one more worker, keeps this process busy while the workers step: no step waits for it to
+    wake.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": ["rgb_array"]}
@@ -270,7 +272,7 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
 
     # ---- talking to the slices ------------------------------------------------------------------
     def _gather(self) -> list:
-        """Each worker's answer, in slice order; the first error is raised once all have answered."""
+        """Each worker's answer, in slice order; the first error is raised once all answered."""
         answers, error = [], None
         for index, pipe in enumerate(self._pipes):
             try:
@@ -310,7 +312,8 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
 
     # ---- the vector API -------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
-        """Reset every copy (copy ``i`` with seed ``seed + i``), or those in ``options["reset_mask"]``."""
+        """Reset every copy (copy ``i`` with seed ``seed + i``), or those in
+        ``options["reset_mask"]``."""
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
         else:
@@ -363,9 +366,8 @@ class HostVectorEnv(gymnasium.vector.VectorEnv):
         return self._observations(), rewards, terminated, truncated, info
 
     def render(self) -> tuple | None:
-        """Every copy's frame (``render_mode="rgb_array"``)."""
-        frames = self.call("render")
-        return None if self.render_mode is None else tuple(frames)
+        """Every copy's frame (``render_mode="rgb_array"``; None without a render mode)."""
+        return None if self.render_mode is None else self.call("render")
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple:
         """``name`` of every copy (called with the arguments where it is a method)."""
