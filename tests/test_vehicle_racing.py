@@ -296,7 +296,7 @@ def test_make_vec_gives_each_copy_its_context():
     observations, info = envs.reset(seed=0)
     assert observations.shape == (2, 96, 96, 3) and observations.dtype == np.uint8
     assert list(info["context"]["vehicle"]) == names
-    vehicles = [copy.unwrapped.contextrl_env.vehicle.name for copy in envs.envs]
+    vehicles = [env.vehicle.name for env in envs.get_attr("contextrl_env")]
     assert vehicles == names
     for _ in range(5):
         observations, *_ = envs.step(np.tile([0.0, 1.0, 0.0], (2, 1)).astype(np.float32))
