@@ -356,10 +356,10 @@ def make_vector_env(
     """A vector env for any registered id: one compiled call for JAX envs, worker processes for host
     envs.
 
-    Host copies are stepped by :class:`~contextrl.gymnasium.host_vector.HostVectorEnv`:
-    ``vectorization="async"`` in ``num_workers`` processes (None: one per available core, at most one
-    per copy), ``"sync"`` in this process; copy ``i`` takes the set's contexts as described above, with
-    the same ``SAME_STEP`` auto-reset. ``max_episode_steps`` is accepted for ``gymnasium.make_vec`` and
+    Host copies are stepped in slices by :class:`~contextrl.gymnasium.host_vector.HostVectorEnv`:
+    ``vectorization="async"`` here and in ``num_workers`` worker processes (None: a slice per
+    available core while each keeps 8 copies), ``"sync"`` all here; copy ``i`` takes the set's
+    contexts as described above, with the same ``SAME_STEP`` auto-reset. ``max_episode_steps`` is accepted for ``gymnasium.make_vec`` and
     becomes ``max_steps`` when given.
     """
     if max_episode_steps is not None:
