@@ -32,11 +32,11 @@ from contextrl.gymnasium import ContextualGymEnv, HostVectorEnv
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _peers import ENVPOOL, ENVPOOL_STEPS, run_peer  # noqa: E402
 
-CONTEXTS = {  # (feature, low, high): copy i takes the i-th of evenly spaced values
-    "LunarLander": ("GRAVITY_Y", -12.0, -2.0),
-    "BipedalWalker": ("GRAVITY_Y", -12.0, -6.0),
-    "DmcWalker": ("gravity", 5.0, 15.0),
-    "RnaDesign": ("target_id_first", 1, 8),
+CONTEXTS = {  # (features, low, high): copy i sets them to the i-th of evenly spaced values
+    "LunarLander": (("GRAVITY_Y",), -12.0, -2.0),
+    "BipedalWalker": (("GRAVITY_Y",), -12.0, -6.0),
+    "DmcWalker": (("gravity",), 5.0, 15.0),
+    "RnaDesign": (("target_id_first", "target_id_last"), 1, 8),  # one target per copy
 }
 ENVPOOL_TASKS = {
     "LunarLander": "LunarLander-v2",
@@ -46,11 +46,9 @@ ENVPOOL_TASKS = {
 
 
 def contexts(name: str, copies: int) -> list[dict]:
-    feature, low, high = CONTEXTS[name]
-    values = np.linspace(low, high, copies)
-    if isinstance(low, int):
-        return [{feature: int(v), "target_id_last": int(v)} for v in values]
-    return [{feature: float(v)} for v in values]
+    features, low, high = CONTEXTS[name]
+    kind = type(low)  # int features take whole values
+    return [{f: kind(v) for f in features} for v in np.linspace(low, high, copies)]
 
 
 def gymnasium_sync(name: str, copies: int, **kwargs) -> gymnasium.vector.SyncVectorEnv:
