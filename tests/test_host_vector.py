@@ -2,8 +2,10 @@
 single adapters gives, step by step (observations, rewards, flags, info with final_obs/final_info)."""
 
 import functools
+import logging
 
 import gymnasium
+import jax
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
@@ -78,6 +80,36 @@ def test_slices_step_as_gymnasium_sync_vector_env_with_resampled_dict_observatio
     assert run_side_by_side(ours, theirs, actions, resets) >= 10  # auto-resets were compared
     ours.close()
     theirs.close()
+
+
+def compilations(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "Finished XLA compilation" in r.getMessage()]
+
+
+def test_host_copies_of_one_configuration_compile_their_episode_start_once(caplog):
+    """A host copy's episode start (context, start key, context observation) is one compiled call;
+    copies with the same selection and context observation share the program (each copy compiled
+    its own before), another configuration has its own."""
+
+    def copy(index, features):
+        env = ContextualGymEnv(
+            "LunarLander",
+            copy_index=index,
+            num_copies=4,
+            contexts={"GRAVITY_Y": crl.Uniform(-11.25, -8.75)},
+            obs_context_features=features,
+        )
+        env.reset(seed=3)
+        return env
+
+    copy(0, "varying")
+    with jax.log_compiles(), caplog.at_level(logging.WARNING):
+        for index in (1, 2, 3):
+            copy(index, "varying")
+    assert compilations(caplog) == []
+    with jax.log_compiles(), caplog.at_level(logging.WARNING):
+        copy(0, "all")  # every feature visible: another context observation
+    assert any("_start" in message for message in compilations(caplog))
 
 
 def test_step_facts_and_set_contexts_match_with_a_worker():

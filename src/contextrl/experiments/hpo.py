@@ -205,9 +205,10 @@ def _trainable(config: dict) -> None:
     """One population member on a Ray worker: train a round, report, checkpoint, repeat.
 
     Its keys come from the spec's seed, its member index and the round, so a rerun trains the same.
-    Synchronous PB2 pauses every member at every round and Ray restarts it in a fresh process, so
-    compiled functions go to the persistent JAX cache (contextrl.compile_cache): a restarted member
-    reads its compiled training instead of compiling it again.
+    Synchronous PB2 pauses every member at every round and restarts it from its checkpoint; Ray
+    reuses the worker processes (``reuse_actors``: no new Python, JAX and Ray imports per round), and
+    compiled functions go to the persistent JAX cache (contextrl.compile_cache), so a restarted
+    member reads its compiled training instead of compiling it again.
     """
     from ray import tune  # optional and slow to import: only the hpo protocol loads it
 
@@ -434,6 +435,7 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
                 metric="return",
                 mode="max",
                 num_samples=1,  # the grid over members makes the population
+                reuse_actors=True,  # a member restarted each round keeps its process
             ),
             run_config=tune.RunConfig(
                 name="pb2",

@@ -430,8 +430,8 @@ class ScalarPhysics:
     A compiled call costs about 15 µs on a CPU whatever it computes; the same physics on Python floats
     (the env's ``host_transition``, written once against an array namespace together with its JAX
     ``transition``, see ``contextrl.core.scalar``) costs a few. Each episode starts with the env's own
-    ``init`` and ``observe`` (:meth:`start`, compiled into :class:`HostBackend`'s start program, which
-    derives the episode's start key), so start states are the compiled path's; each step then runs in
+    ``init`` and ``observe`` (compiled into :class:`HostPrograms`' start program, which derives the
+    episode's start key), so start states are the compiled path's; each step then runs in
     Python and rounds the state and reward to float32, as the compiled path holds them. The host computes
     in double precision, so trajectories agree with the compiled path's to float32 rounding, not bit for
     bit. Only deterministic steps run here (:func:`steps_on_host`).
@@ -456,13 +456,9 @@ class ScalarPhysics:
         self.context: Any = None
         self._values: types.SimpleNamespace | None = None  # the context as Python floats
 
-    def start(self, key: jax.Array, context: Any) -> jax.Array:
-        """The start state drawn from the episode's start key, then its observation (float32, traced)."""
-        physics = self.env.init(key, context)
-        return jnp.concatenate([physics.ravel(), self.env.observe(physics, context).ravel()])
-
     def reset_physics(self, context: Any, started: np.ndarray) -> np.ndarray:
-        """Start an episode under ``context`` from :meth:`start`'s result; the first observation."""
+        """Start an episode under ``context`` from the start state and observation that
+        :class:`HostPrograms` drew; the first observation."""
         if context is not self.context:
             values = [float(getattr(context, name)) for name in self._names]
             self._values = types.SimpleNamespace(**dict(zip(self._names, values, strict=True)))
@@ -488,6 +484,49 @@ class ScalarPhysics:
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+class HostPrograms:
+    """The compiled part of a host episode: its start (the context, the start key, the first context
+    observation and, for scalar physics, the start state) and the context observation of a later step.
+
+    Shared by every host adapter with the same selection, context observation and physics
+    (:func:`shared_program`): 64 host copies compile these once, not 64 times.
+    """
+
+    def __init__(self, schedule: ContextSchedule, obs_context: ContextObservation, physics: Any):
+        self.schedule = schedule
+        self.space = schedule.space
+        self.obs_context = obs_context
+        self.physics = physics  # the JAX env of scalar physics, or None for a HostEnv
+        self.start = cpu_jit(self._start)
+        self.extra = cpu_jit(self._extra)
+
+    def _extra(self, vector, start_key_bits, time):
+        """The context observation at step ``time`` of an episode (noise drawn from its start key)."""
+        key = jax.random.fold_in(jax.random.wrap_key_data(start_key_bits), time)
+        return self.obs_context.values(self.space, self.space.from_array(vector), key)
+
+    def _start(self, words, table):
+        """An episode's start in one uint32 vector: the context (the selector's or the one given) as
+        values and id, the start key's data, the first context observation and, for scalar physics,
+        the start state and observation."""
+        provider = schedule_provider(self.schedule, table)
+        chosen, chosen_id, start_key = choose_context(
+            provider, words[:2], words[2].astype(jnp.int32)
+        )
+        given = words[3] == 1
+        vector = jnp.where(given, _bits_float(words[5:]), self.space.to_array(chosen))
+        index = jnp.where(given, words[4].astype(jnp.int32), jnp.asarray(chosen_id, jnp.int32))
+        bits = jax.random.key_data(start_key)
+        parts = [_float_bits(vector), lax.bitcast_convert_type(index, jnp.uint32)[None], bits]
+        if not self.obs_context.hidden:
+            parts.append(_float_bits(self._extra(vector, bits, 0)))
+        if self.physics is not None:  # the env's own start state and first observation
+            context = self.space.from_array(vector)
+            state = self.physics.init(start_key, context)
+            parts += [_float_bits(state), _float_bits(self.physics.observe(state, context))]
+        return jnp.concatenate(parts)
 
 
 class HostBackend:
@@ -526,8 +565,13 @@ class HostBackend:
             )
         self.table = on_cpu(context_table(schedule))
         self._keyed = isinstance(simulator, ScalarPhysics)
-        self._start_program = cpu_jit(self._start_fn)
-        self._extra = cpu_jit(self._extra_fn)
+        physics = simulator.env if self._keyed else None
+        key = schedule.selection_key
+        programs = shared_program(
+            None if key is None else ("host", key, obs_context, physics),
+            lambda: HostPrograms(schedule, obs_context, physics),
+        )
+        self._start_program, self._extra = programs.start, programs.extra
         self._features = len(self.space)
         self._extra_size = 0 if obs_context.hidden else len(obs_context.features)
         # The start program's words: run key data, episode, 1 where a context is given, its id, values.
@@ -540,32 +584,6 @@ class HostBackend:
         self._vector: np.ndarray | None = None
         self._start_key: np.ndarray | None = None
         self._fixed_extra: np.ndarray | None = None  # the context observation when it has no noise
-
-    def _extra_fn(self, vector, start_key_bits, time):
-        """The context observation at step ``time`` of an episode (noise drawn from its start key)."""
-        key = jax.random.fold_in(jax.random.wrap_key_data(start_key_bits), time)
-        return self.obs_context.values(self.space, self.space.from_array(vector), key)
-
-    def _start_fn(self, words, table):
-        """An episode's start in one uint32 vector: the context (the selector's or the one given) as
-        values and id, the start key's data, the first context observation and, for scalar physics,
-        the start state and observation."""
-        provider = schedule_provider(self.schedule, table)
-        chosen, chosen_id, start_key = choose_context(
-            provider, words[:2], words[2].astype(jnp.int32)
-        )
-        given = words[3] == 1
-        vector = jnp.where(given, _bits_float(words[5:]), self.space.to_array(chosen))
-        index = jnp.where(given, words[4].astype(jnp.int32), jnp.asarray(chosen_id, jnp.int32))
-        bits = jax.random.key_data(start_key)
-        parts = [_float_bits(vector), lax.bitcast_convert_type(index, jnp.uint32)[None], bits]
-        if not self.obs_context.hidden:
-            parts.append(_float_bits(self._extra_fn(vector, bits, 0)))
-        if self._keyed:
-            parts.append(
-                _float_bits(self.simulator.start(start_key, self.space.from_array(vector)))
-            )
-        return jnp.concatenate(parts)
 
     def _context(self, vector: np.ndarray, index: int) -> Any:
         """The episode's context object, built with NumPy (``from_array``'s JAX ops would cost
