@@ -16,15 +16,18 @@ ROOT = Path(__file__).resolve().parents[1]
 
 xla_cpu_workaround()  # before any test starts JAX's CPU backend (see README, process-wide settings)
 
-# Compiling, not running, is most of the suite's time, and XLA:CPU's fusion emitters are much of
-# the compiling: without them (XLA's older emitters) a Brax parity program compiles in 24 s instead
-# of 40 s, and test_brax.py's Hopper and Ant tests take 98 s instead of 159 s. Compiled programs run
-# as fast on MJX but PPO's loop at about 0.55× (benchmarks/bench_compile_flags.py), so the learning
-# tests, which run long, pin XLA's default for their own programs (tests/learning.py,
+# Compiling, not running, is most of the suite's time. Two XLA:CPU settings cut it:
+# - without the fusion emitters (XLA's older emitters) a Brax parity program compiles in 24 s instead
+#   of 40 s; compiled programs run as fast on MJX but PPO's loop at about 0.55×
+#   (benchmarks/bench_compile_flags.py);
+# - LLVM's optimisation level 0 instead of 3: test_brax.py's Hopper test takes 14 s instead of 19 s,
+#   the optimality-gap and paper tests that train at tiny budgets 24 s instead of 62 s.
+# The learning tests, which run long, pin XLA's default for their own programs (tests/learning.py,
 # MEASURED_NUMERICS); elsewhere results differ in the last bits only. Subprocesses that tests start
-# (the CLI, process executors, Ray workers) inherit the flag.
-if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] += " --xla_cpu_use_fusion_emitters=false"
+# (the CLI, process executors, Ray workers) inherit the flags.
+for flag in ("--xla_cpu_use_fusion_emitters=false", "--xla_backend_optimization_level=0"):
+    if flag.split("=")[0] not in os.environ.get("XLA_FLAGS", ""):
+        os.environ["XLA_FLAGS"] += f" {flag}"
 
 # One on-disk JAX compilation cache for every process of the suite: the xdist workers, and the CLI
 # runs and process executors that tests start (JAX reads these variables when it is imported), so a

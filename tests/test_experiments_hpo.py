@@ -79,8 +79,8 @@ def constant(**hyper):
     make_train = spec.agent_entry().make_train(spec._config(hyper), env, train_set)
     return leaves(jax.jit(lambda k: make_train(k).params)(key))
 
-def same(a, b):
-    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+def close(a, b):  # two programs: equal up to float32 rounding, not always bit for bit
+    return all(np.allclose(x, y, rtol=1e-5, atol=1e-6) for x, y in zip(a, b, strict=True))
 
 first = train(learning_rate=1e-3, ent_coef=0.0, clip_eps=0.2)
 events = []
@@ -93,9 +93,9 @@ spec = dataclasses.replace(spec, search={name: [-1.0, 1.0] for name in untraceab
 print(json.dumps({
     "hits": events.count("/jax/compilation_cache/cache_hits"),
     "misses": events.count("/jax/compilation_cache/cache_misses"),
-    "as_constants": same(second, constant(learning_rate=3e-3, ent_coef=0.01, clip_eps=0.3)),
-    "values_act": not same(first, second),
-    "untraceable_as_constants": same(train(**untraceable), constant(**untraceable)),
+    "as_constants": close(second, constant(learning_rate=3e-3, ent_coef=0.01, clip_eps=0.3)),
+    "values_act": not close(first, second),
+    "untraceable_as_constants": close(train(**untraceable), constant(**untraceable)),
 }))
 """
 
@@ -103,7 +103,8 @@ print(json.dumps({
 def test_members_with_other_values_share_one_compiled_round(tmp_path):
     """The searched values are inputs of the compiled round, not constants: a member with other
     values runs the program another member compiled (read from the persistent cache, nothing
-    compiled; each member used to compile its own) and trains exactly as with constants. A searched
+    compiled; each member used to compile its own) and trains as with constants (to float32 rounding:
+    folding a constant may round differently, by one ulp under the suite's XLA flags). A searched
     value the agent cannot trace (PPO checks log_std_init's type in Python) stays a constant. Runs in
     a fresh process with an empty cache, so what the cache held before cannot decide the outcome."""
     environment = {**os.environ, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "cache")}

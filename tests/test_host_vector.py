@@ -103,10 +103,12 @@ def test_host_copies_of_one_configuration_compile_their_episode_start_once(caplo
         return env
 
     copy(0, "varying")
+    caplog.clear()
     with jax.log_compiles(), caplog.at_level(logging.WARNING):
         for index in (1, 2, 3):
             copy(index, "varying")
     assert compilations(caplog) == []
+    caplog.clear()
     with jax.log_compiles(), caplog.at_level(logging.WARNING):
         copy(0, "all")  # every feature visible: another context observation
     assert any("_start" in message for message in compilations(caplog))
