@@ -1,11 +1,13 @@
-"""What XLA:CPU's fusion emitters cost in compiling and give in running: each program compiled and run
-in a fresh process with and without ``--xla_cpu_use_fusion_emitters=false``, alternating, no cache.
+"""What XLA:CPU's code generation settings cost in compiling and give in running: each program compiled
+and run in a fresh process with XLA's defaults, with ``--xla_cpu_use_fusion_emitters=false``, and with
+that and ``--xla_backend_optimization_level=0`` (LLVM's level 0, as the test suite compiles), in turn,
+no cache.
 
     python benchmarks/bench_compile_flags.py              # Brax Ant rollout, PPO on CartPole
     python benchmarks/bench_compile_flags.py --repeats 3
 
 Rows: per program and setting, the seconds to compile (first call, tracing included) and the speed of
-the compiled program (best of three calls). The test suite turns the emitters off (tests/conftest.py):
+the compiled program (best of three calls). The test suite uses the last setting (tests/conftest.py):
 compiling is most of its time.
 """
 
@@ -16,7 +18,12 @@ import os
 import subprocess
 import sys
 
-FLAG = "--xla_cpu_use_fusion_emitters=false"
+SETTINGS = {
+    "XLA's default": "",
+    "fusion emitters off": "--xla_cpu_use_fusion_emitters=false",
+    "emitters off, LLVM level 0": "--xla_cpu_use_fusion_emitters=false "
+    "--xla_backend_optimization_level=0",
+}
 
 PROGRAM = """
 import sys, time
@@ -81,11 +88,11 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()[0]:.2f}")
-    print("| program | emitters | run | compile s | steps/s |")
+    print("| program | setting | run | compile s | steps/s |")
     print("| --- | --- | --- | ---: | ---: |")
     for program in args.programs:
         for repeat in range(args.repeats):
-            for label, flags in (("on (XLA's default)", ""), ("off", FLAG)):
+            for label, flags in SETTINGS.items():
                 compile_seconds, speed = measure(program, flags)
                 row = (
                     f"| {program} | {label} | {repeat + 1} | {compile_seconds:.1f} | {speed:,.0f} |"
