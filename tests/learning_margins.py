@@ -7,8 +7,9 @@ Run each numerics in its own process (XLA reads its flags once, when JAX starts)
 
 Stable-Baselines3's run does not go through XLA; its second numerics is torch without SIMD kernels
 (``ATEN_CPU_CAPABILITY=default``). The host-path RNA run compiles its networks inside the library, so
-it is also measured as the suite compiles it (``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false``,
-tests/conftest.py); the JAX cases pin XLA's default numerics whatever the flags
+it is also measured as the suite compiles it (``XLA_FLAGS="--xla_cpu_use_fusion_emitters=false
+--xla_backend_optimization_level=0"``, tests/conftest.py); the JAX cases pin XLA's default numerics
+whatever the flags
 (``learning.MEASURED_NUMERICS``).
 
 It prints, per case and statistic, the sorted per-seed values, their minimum, median and maximum;

@@ -461,7 +461,8 @@ def test_ppo_lowers_the_hamming_distance_on_short_synthetic_targets():
     last 100 episodes' distance over the first 100's: default numerics, seeds 0–15: 0.12–0.70,
     median 0.36 (seed 0: 0.70; first 100 episodes 0.16–0.23, last 100 0.02–0.12); XLA's backend
     optimisation off, seeds 100–107: 0.23–0.72, median 0.43; as the suite compiles it (XLA's
-    fusion emitters off, conftest.py), seeds 0–7: 0.12–0.70, median 0.36. The bound of 0.85 (still
+    fusion emitters off and LLVM's level 0, conftest.py), seeds 0–7: 0.12–0.70, median 0.36 (the
+    same with the emitters off alone). The bound of 0.85 (still
     15 % of the distance learned away) clears the worst seed by 0.13; the former 0.8 would clear it
     by 0.08.
     """
