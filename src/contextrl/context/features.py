@@ -80,26 +80,36 @@ class Feature:
         if array.ndim == 0:
             return self._coerce_one(array, value)
         if not np.all(np.isfinite(array)):
-            bad = array[~np.isfinite(array)].flat[0]  # the value itself, not the container's repr
-            raise ContextError(f"{self.name}: value {bad:g} is not finite (NaN or inf)")
+            raise self._not_finite(array[~np.isfinite(array)].flat[0])  # the value, not the batch
         if self.kind != "float" and not np.all(np.equal(np.round(array), array)):
-            raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
+            raise self._not_integer(value)
         # Compared at the precision a context holds, so a stored bound value passes a second check.
-        stored = array.astype(np.float32 if self.kind == "float" else np.int32)
-        lower, upper = np.asarray([self.lower, self.upper]).astype(stored.dtype)
+        stored = array.astype(self._stored_dtype)
+        lower, upper = self._stored_bounds
         low, high = np.min(stored), np.max(stored)
         if low < lower or high > upper:
-            bad = np.min(array) if low < lower else np.max(array)
-            raise ContextError(
-                f"{self.name}: value {bad:g} is outside its bounds [{self.lower:g}, {self.upper:g}]"
-            )
+            raise self._outside(np.min(array) if low < lower else np.max(array))
         return stored
+
+    def _not_finite(self, bad) -> ContextError:
+        return ContextError(f"{self.name}: value {bad:g} is not finite (NaN or inf)")
+
+    def _not_integer(self, value) -> ContextError:
+        return ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
+
+    def _outside(self, bad) -> ContextError:
+        return ContextError(
+            f"{self.name}: value {bad:g} is outside its bounds [{self.lower:g}, {self.upper:g}]"
+        )
+
+    @property
+    def _stored_dtype(self) -> type:
+        return np.float32 if self.kind == "float" else np.int32
 
     @functools.cached_property
     def _stored_bounds(self) -> tuple[float, float]:
         """The bounds at the precision a context holds them (as :meth:`coerce` compares)."""
-        dtype = np.float32 if self.kind == "float" else np.int32
-        lower, upper = np.asarray([self.lower, self.upper]).astype(dtype).tolist()
+        lower, upper = np.asarray([self.lower, self.upper]).astype(self._stored_dtype).tolist()
         return lower, upper
 
     def _coerce_one(self, array: np.ndarray, value: Any) -> np.ndarray:
@@ -107,16 +117,13 @@ class Feature:
         every feature at every reset; NumPy reductions would cost microseconds each)."""
         number = array.item()
         if not math.isfinite(number):
-            raise ContextError(f"{self.name}: value {number:g} is not finite (NaN or inf)")
+            raise self._not_finite(number)
         if self.kind != "float" and round(number) != number:
-            raise ContextError(f"{self.name}: expected an integer ({self.kind}), got {value!r}")
-        stored = array.astype(np.float32 if self.kind == "float" else np.int32)
+            raise self._not_integer(value)
+        stored = array.astype(self._stored_dtype)
         lower, upper = self._stored_bounds
         if not lower <= stored.item() <= upper:
-            raise ContextError(
-                f"{self.name}: value {number:g} is outside its bounds "
-                f"[{self.lower:g}, {self.upper:g}]"
-            )
+            raise self._outside(number)
         return stored
 
 

@@ -547,7 +547,6 @@ class HostBackend:
         max_steps: int,
     ):
         self.simulator = simulator
-        self.schedule = schedule
         self.space = simulator.context_space
         self.obs_context = obs_context
         self.max_steps = max_steps

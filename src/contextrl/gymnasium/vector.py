@@ -359,8 +359,8 @@ def make_vector_env(
     Host copies are stepped in slices by :class:`~contextrl.gymnasium.host_vector.HostVectorEnv`:
     ``vectorization="async"`` here and in ``num_workers`` worker processes (None: a slice per
     available core while each keeps 8 copies), ``"sync"`` all here; copy ``i`` takes the set's
-    contexts as described above, with the same ``SAME_STEP`` auto-reset. ``max_episode_steps`` is accepted for ``gymnasium.make_vec`` and
-    becomes ``max_steps`` when given.
+    contexts as described above, with the same ``SAME_STEP`` auto-reset. ``max_episode_steps`` is
+    accepted for ``gymnasium.make_vec`` and becomes ``max_steps`` when given.
     """
     if max_episode_steps is not None:
         kwargs.setdefault("max_steps", max_episode_steps)
