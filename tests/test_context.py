@@ -280,6 +280,12 @@ def test_selector_and_set_errors(cartpole):
         Resample(cartpole.context_space, {})
     with pytest.raises(ContextError, match=r"contexts\[0\]: expected a dict of feature values"):
         crl.with_contexts(cartpole, [0.5, 0.6])
+    # A list of values where one value belongs: named, not reported as another feature's shape.
+    one_value = r"length takes one value per context, got 2; list one dict per context instead"
+    with pytest.raises(ContextError, match=r"contexts\[1\]: " + one_value):
+        crl.with_contexts(cartpole, [{"length": 0.5}, {"length": [0.5, 0.6]}])
+    with pytest.raises(ContextError, match=r"^contexts: " + one_value):
+        crl.with_contexts(cartpole, {"length": [0.5, 0.6]})
 
 
 def test_a_dict_of_values_is_one_context(cartpole):

@@ -102,6 +102,12 @@ def _one_context(space: ContextSpace, value: Any, where: str) -> Any:
         space.check(value)
         return value
     if isinstance(value, Mapping):
+        for name, entry in value.items():  # ``make`` would take a list as a batch of contexts
+            if np.ndim(entry):
+                raise ContextError(
+                    f"{where}: {name} takes one value per context, got {len(entry)}; "
+                    "list one dict per context instead"
+                )
         return space.make(**value)
     raise ContextError(
         f"{where}: expected a dict of feature values or a {space.context_class.__name__}, "
@@ -141,7 +147,7 @@ def resolve_contexts(
         ids = tuple(contexts)
         members = [_one_context(space, v, f"contexts[{k!r}]") for k, v in contexts.items()]
     elif isinstance(contexts, Mapping):
-        ids, members = (0,), [space.make(**contexts)]
+        ids, members = (0,), [_one_context(space, contexts, "contexts")]
     elif isinstance(contexts, ContextBase) and contexts.batch_shape:
         if not isinstance(contexts, space.context_class):
             raise ContextError(
