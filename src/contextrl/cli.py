@@ -129,6 +129,9 @@ def environments_markdown() -> str:
             "",
             markdown_table(feature_rows(env.context_space)),
         ]
+        if env.left_out:
+            parts += ["", "Not offered (they cannot act here):", ""]
+            parts += [f"- `{name}`: {why}" for name, why in env.left_out.items()]
         if env.context_space.rules:
             parts += [
                 "",
@@ -202,6 +205,10 @@ def run_describe(args: argparse.Namespace) -> int:
     print()
     rows = feature_rows(env.context_space)
     print(markdown_table(rows) if args.markdown else text_table(rows))
+    if env.left_out:
+        print("\nNot offered (they cannot act here):")
+        for name, why in env.left_out.items():
+            print(f"- {name}: {why}")
     return 0
 
 

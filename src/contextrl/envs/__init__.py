@@ -45,6 +45,7 @@ BRAX_ENVIRONMENTS = (
     "Reacher",
     "Pusher",
 )
+REACHING_ENVIRONMENTS = ("Fetch", "Ur5e")
 
 
 def _make_brax(name: str, **kwargs):
@@ -58,6 +59,10 @@ if importlib.util.find_spec("brax") is not None:  # the optional `brax` extra
     for _name in BRAX_ENVIRONMENTS:
         _factory = functools.partial(_make_brax, _name)
         register(f"Brax{_name}", _factory, family="brax", aliases=(f"CARLBrax{_name}",))
+    # The paper's target-reaching tasks, rebuilt on MJX: ids and CARL's names as in CARL 0.x.
+    for _name in REACHING_ENVIRONMENTS:
+        _factory = functools.partial(_make_brax, _name)
+        register(_name, _factory, family="brax", aliases=(f"CARL{_name}",))
 
 BOX2D_ENVIRONMENTS = {  # id: (class name, constructor arguments, CARL's names)
     "LunarLander": ("LunarLander", {}, ("CARLLunarLander",)),

@@ -1,4 +1,5 @@
-"""The Brax family (extra ``brax``): ten locomotion and control tasks on brax's physics, MJX by default.
+"""The Brax family (extra ``brax``): brax's ten locomotion and control tasks on its physics, MJX by
+default, and the paper's target-reaching tasks (Fetch, UR5e) rebuilt on MJX.
 
 Every copy of a batch runs its own physical system, built from its context inside the compiled step.
 """
@@ -16,6 +17,9 @@ from contextrl.envs.brax.environments import (
     Reacher,
     Walker2d,
 )
+from contextrl.envs.brax.fetch import Fetch
+from contextrl.envs.brax.reaching import ReachingTask
+from contextrl.envs.brax.ur5e import Ur5e
 
 ENVIRONMENTS = (
     Ant,
@@ -29,13 +33,16 @@ ENVIRONMENTS = (
     Reacher,
     Pusher,
 )
+REACHING_ENVIRONMENTS = (Fetch, Ur5e)
 
 __all__ = [
     "BACKENDS",
     "COMPASS",
     "ENVIRONMENTS",
+    "REACHING_ENVIRONMENTS",
     "Ant",
     "BraxEnv",
+    "Fetch",
     "HalfCheetah",
     "Hopper",
     "Humanoid",
@@ -43,7 +50,9 @@ __all__ = [
     "InvertedDoublePendulum",
     "InvertedPendulum",
     "Pusher",
+    "ReachingTask",
     "Reacher",
+    "Ur5e",
     "Walker2d",
     "context_class",
     "load_brax_env",

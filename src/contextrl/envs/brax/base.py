@@ -160,8 +160,14 @@ class BraxEnv(Env):
             raise ValueError(f"fluid=True needs the mjx backend, got backend={self.backend!r}")
         features = context_class(type(self), self.backend, self.goal, self.fluid)
         object.__setattr__(self, "context_type", features)
-        object.__setattr__(self, "_brax", load_brax_env(self.brax_name, self.backend, self.fluid))
+        object.__setattr__(self, "_brax", type(self).load(self.backend, self.fluid))
         super().__post_init__()
+
+    @classmethod
+    def load(cls, backend: str, fluid: bool):
+        """The task object holding the stock system (``sys``) and the control step (``dt``), loaded
+        once per process: brax's own task, by default."""
+        return load_brax_env(cls.brax_name, backend, fluid)
 
     # ---- the declared features ---------------------------------------------------------------------
     @classmethod
@@ -289,7 +295,7 @@ class BraxEnv(Env):
             changes["link.inertia.i"] = jnp.asarray(stock.link.inertia.i) * scale[:, None, None]
         if self.backend in INVWEIGHT_BACKENDS:
             stock_masses = jnp.all(mass == stock_mass)
-            derived = mass_constants(_pose_tables(self.brax_name, self.fluid), mass, inertia)
+            derived = mass_constants(_pose_tables(type(self), self.fluid), mass, inertia)
             derived = {
                 name: jnp.where(stock_masses, jnp.asarray(getattr(stock, name)), value)
                 for name, value in derived.items()
@@ -324,7 +330,7 @@ class BraxEnv(Env):
         has one; bodies the context moves (Pusher's goal) are drawn where the context puts them."""
         import mujoco
 
-        model, data, renderer = _renderer(self.brax_name, self.backend, self.fluid, height, width)
+        model, data, renderer = _renderer(type(self), self.backend, self.fluid, height, width)
         model.body_pos[:] = np.asarray(self.system(context).body_pos)
         data.qpos[:], data.qvel[:] = (
             np.asarray(state.pipeline_state.q),
@@ -335,7 +341,24 @@ class BraxEnv(Env):
             "track" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "track") >= 0 else -1
         )
         renderer.update_scene(data, camera=camera)
+        for position, radius, rgba in self.scene_markers(state, context):
+            scene = renderer.scene
+            if scene.ngeom < scene.maxgeom:
+                scene.ngeom += 1
+                mujoco.mjv_initGeom(
+                    scene.geoms[scene.ngeom - 1],
+                    mujoco.mjtGeom.mjGEOM_SPHERE,
+                    np.full(3, radius),
+                    np.asarray(position, np.float64),
+                    np.eye(3).reshape(-1),
+                    np.asarray(rgba, np.float32),
+                )
         return renderer.render()
+
+    def scene_markers(self, state, context) -> list[tuple[np.ndarray, float, tuple]]:
+        """Spheres (position, radius, RGBA) drawn over the scene that are not part of the model (a
+        target held in the state); none by default."""
+        return []
 
     # ---- the core Env pieces -----------------------------------------------------------------------
     @property
@@ -387,17 +410,17 @@ def _effective_mass_exponents(brax_name: str, backend: str) -> tuple[float, floa
 
 
 @functools.cache
-def _pose_tables(brax_name: str, fluid: bool):
+def _pose_tables(env_class: type, fluid: bool):
     """The mass-independent tables of a task's model at its initial pose (``mass.py``), made once."""
-    return pose_tables(load_brax_env(brax_name, "mjx", fluid).sys.mj_model)
+    return pose_tables(env_class.load("mjx", fluid).sys.mj_model)
 
 
 @functools.cache
-def _renderer(brax_name: str, backend: str, fluid: bool, height: int, width: int):
+def _renderer(env_class: type, backend: str, fluid: bool, height: int, width: int):
     """A MuJoCo model copy, its data and a renderer for one task, made once per frame size."""
     import mujoco
 
-    model = copy.deepcopy(load_brax_env(brax_name, backend, fluid).sys.mj_model)
+    model = copy.deepcopy(env_class.load(backend, fluid).sys.mj_model)
     return model, mujoco.MjData(model), mujoco.Renderer(model, height=height, width=width)
 
 
