@@ -1,6 +1,6 @@
 """Steps per second of the Brax family, every copy with its own physical system, against brax itself.
 
-    python benchmarks/bench_brax.py [--envs Ant,HalfCheetah] [--sizes 1,64,256,1024] [--steps 20]
+    python benchmarks/bench_brax.py [--envs Ant,HalfCheetah] [--reaching Fetch,Ur5e] [--sizes 1,64,256,1024]
 
 Everything is stepped through the project's one stepping path, ``crl.with_contexts(env, contexts)``
 with ``reset_copies``/``step_copies`` (what the agents and the gymnasium vector face run): copy i keeps
@@ -18,6 +18,10 @@ context i of a batch drawn per copy, episodes end and restart (a new context cho
    never recompile: the compiled rollout takes the contexts as an argument and is called again with a
    second, independently drawn batch; the jitted function's cache and XLA's compilation count must not
    grow.
+3. The target-reaching tasks (Fetch, UR5e) the same way, with no brax column (brax has not had them
+   since 2023), compiled twice: with XLA's defaults and with ``xla_cpu_use_fusion_emitters`` off for
+   that program (``jax.jit``'s ``compiler_options``). XLA:CPU's fusion emitters make MJX's forward
+   kinematics of a long serial chain cost exponentially more per level (UR5e's six-link arm).
 
 Runs with XLA:CPU's concurrency-optimised scheduler off (``contextrl.xla_flags``): with it, Walker2d at
 1,024 copies never finishes on 2 cores, for brax's own environment as for ours (jaxlib 0.10.2 runs two
@@ -57,7 +61,22 @@ def per_copy_contexts(env, n: int, key):
     return crl.sample(env, spec, n, key)
 
 
-def contextual_rollout(env, n: int, steps: int):
+def reaching_contexts(env, n: int, key):
+    """``n`` contexts of a target-reaching task around its paper defaults: gravity, friction, torso mass,
+    motor strength and target distance."""
+    features = env.context_space.features
+    strength, distance = features["actuator_strength"].default, features["target_distance"].default
+    spec = {
+        "gravity": crl.Uniform(5.0, 15.0),
+        "friction": crl.Uniform(0.3, 1.0),
+        "torso_mass": crl.Uniform(0.5, 2.0),
+        "actuator_strength": crl.Uniform(0.5 * strength, 1.5 * strength),
+        "target_distance": crl.Uniform(0.5 * distance, 1.5 * distance),
+    }
+    return crl.sample(env, spec, n, key)
+
+
+def contextual_rollout(env, n: int, steps: int, compiler_options=None):
     """jit((key, contexts) → checksum): ``n`` copies through ``ContextualEnv`` for ``steps`` random steps."""
 
     def run(key, contexts):
@@ -75,7 +94,7 @@ def contextual_rollout(env, n: int, steps: int):
         (_, total), _ = jax.lax.scan(body, start, jax.random.split(key, steps))
         return total
 
-    return jax.jit(run)
+    return jax.jit(run, compiler_options=compiler_options)
 
 
 def brax_rollout(env, n: int, steps: int):
@@ -189,6 +208,37 @@ def table(names, sizes, seconds: float, rounds: int) -> None:
             )
 
 
+def reaching_table(names, sizes, seconds: float, rounds: int) -> None:
+    print(
+        "\nThe target-reaching tasks (no brax counterpart), each copy with its own context, compiled"
+        f" with XLA's defaults and with the fusion emitters off (best of {rounds} alternating calls)"
+    )
+    print(
+        f"{'env':>8} {'copies':>7} {'steps':>6} {'compile s':>10} {'steps/s':>10}"
+        f" {'emitters off: compile s':>24} {'steps/s':>10} {'recompiles on new contexts':>27}"
+    )
+    for name in names:
+        env = getattr(family, name)()
+        rate = None
+        for n in sizes:
+            steps = steps_for(n, rate, seconds)
+            runs = [
+                contextual_rollout(env, n, steps, options)
+                for options in (None, {"xla_cpu_use_fusion_emitters": False})
+            ]
+            first, second = (reaching_contexts(env, n, jax.random.key(k)) for k in (1, 2))
+            compile_s = [first_call(run, first) for run in runs]
+            before = len(compilations)
+            rates = best_rates([(run, second) for run in runs], n * steps, rounds)
+            recompiles = len(compilations) - before + sum(run._cache_size() - 1 for run in runs)
+            rate = max(rates)
+            print(
+                f"{name:>8} {n:>7} {steps:>6} {compile_s[0]:>10.1f} {rates[0]:>10.3g}"
+                f" {compile_s[1]:>24.1f} {rates[1]:>10.3g} {recompiles:>27}",
+                flush=True,
+            )
+
+
 def main() -> None:
     xla_cpu_workaround()  # before the first JAX computation starts XLA's CPU backend
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -199,8 +249,11 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3, help="alternating timed calls per side")
     parser.add_argument("--skip-compare", action="store_true")
     parser.add_argument("--skip-table", action="store_true")
+    parser.add_argument(
+        "--reaching", default=",".join(c.__name__ for c in family.REACHING_ENVIRONMENTS)
+    )
     args = parser.parse_args()
-    names = args.envs.split(",")
+    names = args.envs.split(",") if args.envs else []
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     print(
         f"jax {jax.__version__} on {jax.devices()[0].platform}, {os.cpu_count()} cores shared with other"
@@ -212,6 +265,9 @@ def main() -> None:
         compare_with_brax(compared, 256, args.compare_steps, args.rounds)
     if not args.skip_table:
         table(names, [int(s) for s in args.sizes.split(",")], args.seconds, args.rounds)
+    if args.reaching:
+        reaching = args.reaching.split(",")
+        reaching_table(reaching, [int(s) for s in args.sizes.split(",")], args.seconds, args.rounds)
     print(f"\nload average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 

@@ -111,7 +111,8 @@ def test_pusher_starts_the_object_clear_of_the_contexts_goal():
 
 
 def test_registered_with_carl_aliases_and_validated():
-    assert crl.registered("brax") == sorted(f"Brax{n}" for n in NAMES)
+    reaching = [cls.__name__ for cls in family.REACHING_ENVIRONMENTS]
+    assert crl.registered("brax") == sorted([f"Brax{n}" for n in NAMES] + reaching)
     assert crl.spec("CARLBraxAnt").id == "BraxAnt"
     env = crl.make("CARLBraxPusher")
     assert env.default_context().gravity == 0.0  # the stock pusher has no gravity

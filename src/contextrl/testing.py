@@ -77,39 +77,52 @@ def _effects(env: Env, steps: int):
 
     The trajectory follows the base context with random actions (resetting when it ends); at every state
     the changed context's transition, reward, termination and observation are compared with the base's.
+    Both contexts go through one vmapped computation, the same compiled code: two separately compiled
+    copies of a step can round differently, and a solver that iterates to a tolerance (MJX's) can turn
+    that into differences far beyond rounding.
     """
+
+    def both(function, *args):
+        """``function(*args, context)`` for the base and the changed context at once (leading axis)."""
+        return lambda base, changed: jax.vmap(lambda context: function(*args, context))(
+            jax.tree_util.tree_map(lambda b, c: jnp.stack([b, c]), base, changed)
+        )
+
+    def pick(tree, index):
+        return jax.tree_util.tree_map(lambda leaf: leaf[index], tree)
 
     def effects(base, changed, key):
         start_key, run_key = jax.random.split(key)
-        start_base = env.init(start_key, base)
-        start_changed = env.init(start_key, changed)
+        starts = both(env.init, start_key)(base, changed)
 
         def body(state, step_key):
             action_key, transition_key, reset_key = jax.random.split(step_key, 3)
             action = env.action_space.sample(action_key)
-            next_base, reward_base, term_base = env.transition(transition_key, state, action, base)
-            next_changed, reward_changed, term_changed = env.transition(
-                transition_key, state, action, changed
+            nexts, rewards, terms = both(env.transition, transition_key, state, action)(
+                base, changed
             )
+            observations = both(env.observe, state)(base, changed)
             shown = jnp.stack(
                 [
-                    _differs(env.state_variables(next_base), env.state_variables(next_changed)),
-                    _differs(reward_base, reward_changed),
-                    term_base != term_changed,
-                    _differs(env.observe(state, base), env.observe(state, changed)),
+                    _differs(
+                        env.state_variables(pick(nexts, 0)), env.state_variables(pick(nexts, 1))
+                    ),
+                    _differs(rewards[0], rewards[1]),
+                    terms[0] != terms[1],
+                    _differs(observations[0], observations[1]),
                 ]
             )
             restart = env.init(reset_key, base)
             state = jax.tree_util.tree_map(
-                lambda r, s: jnp.where(term_base, r, s), restart, next_base
+                lambda r, s: jnp.where(terms[0], r, s), restart, pick(nexts, 0)
             )
             return state, shown
 
-        _, shown = jax.lax.scan(body, start_base, jax.random.split(run_key, steps))
+        _, shown = jax.lax.scan(body, pick(starts, 0), jax.random.split(run_key, steps))
         dynamics, reward, termination, observation = jnp.any(shown, axis=0)
         return {
             "start_state": _differs(
-                env.state_variables(start_base), env.state_variables(start_changed)
+                env.state_variables(pick(starts, 0)), env.state_variables(pick(starts, 1))
             ),
             "dynamics": dynamics,
             "reward": reward,

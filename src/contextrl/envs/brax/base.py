@@ -332,6 +332,7 @@ class BraxEnv(Env):
 
         model, data, renderer = _renderer(type(self), self.backend, self.fluid, height, width)
         model.body_pos[:] = np.asarray(self.system(context).body_pos)
+        self.paint(model, context)
         data.qpos[:], data.qvel[:] = (
             np.asarray(state.pipeline_state.q),
             np.asarray(state.pipeline_state.qd),
@@ -354,6 +355,9 @@ class BraxEnv(Env):
                     np.asarray(rgba, np.float32),
                 )
         return renderer.render()
+
+    def paint(self, model, context) -> None:
+        """Colour the rendering model's geoms (``geom_rgba``) to show the context; nothing by default."""
 
     def scene_markers(self, state, context) -> list[tuple[np.ndarray, float, tuple]]:
         """Spheres (position, radius, RGBA) drawn over the scene that are not part of the model (a

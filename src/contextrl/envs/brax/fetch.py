@@ -14,6 +14,7 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from contextrl.envs.brax.reaching import ReachingTask
 
@@ -79,6 +80,10 @@ MODEL = f"""
 </mujoco>
 """
 
+# The ground's colour at ice, grass and concrete frictions (``Fetch.paint``).
+GROUND_FRICTIONS = (0.05, 0.6, 1.0)
+GROUND_COLOURS = np.array([[0.75, 0.88, 0.95], [0.35, 0.6, 0.25], [0.55, 0.55, 0.55]])
+
 BODIES = ("torso", "shoulders", "hips") + tuple(
     f"{leg}_{part}"
     for leg in ("front_right", "front_left", "back_right", "back_left")
@@ -112,6 +117,15 @@ class Fetch(ReachingTask):
     # forward and up (6), target distance and direction (4), the other bodies' positions (30) and
     # every body's velocity (33) in the torso's frame, the feet's ground contacts (4)
     observation_size = 77
+
+    def paint(self, model, context) -> None:
+        """The ground's colour follows its friction: ice (pale blue) at 0.05, grass (green) at the
+        default 0.6, concrete (grey) at 1 and above, blended in between."""
+        friction = float(context.friction)
+        ground = model.geom("ground").id
+        model.geom_rgba[ground, :3] = np.array(
+            [np.interp(friction, GROUND_FRICTIONS, channel) for channel in GROUND_COLOURS.T]
+        )
 
     def reward(self, before, after, target, hit):
         from brax import math as brax_math

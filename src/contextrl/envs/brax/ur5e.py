@@ -19,7 +19,7 @@ from contextrl.envs.brax.reaching import ReachingTask
 
 MODEL = """
 <mujoco model="ur5e">
-  <option timestep="0.0025" gravity="0 0 -9.81" iterations="1" ls_iterations="4"/>
+  <option timestep="0.0025" gravity="0 0 -9.81" iterations="1" ls_iterations="4" tolerance="0" ls_tolerance="0"/>
   <default>
     <joint type="hinge" damping="50"/>
     <geom type="capsule" contype="1" conaffinity="0" friction="0.6 0.005 0.0001"

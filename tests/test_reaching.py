@@ -1,0 +1,153 @@
+"""The paper's target-reaching tasks rebuilt on MJX (Fetch, UR5e): the public checker proves every
+feature acts, the CARL failures cannot happen, targets are drawn, reached and moved as the paper's
+tasks did, and the tasks are registered under CARL's names with their gymnasium face and rendering."""
+
+import importlib.util
+
+import gymnasium
+import numpy as np
+import pytest
+
+# Checked without importing brax: brax imports MuJoCo, which must see MUJOCO_GL=egl (set by the family).
+if importlib.util.find_spec("brax") is None:
+    pytest.skip("brax is not installed", allow_module_level=True)
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+import contextrl as crl  # noqa: E402
+from contextrl.cli import main  # noqa: E402
+from contextrl.core.env import EnvState  # noqa: E402
+from contextrl.envs import brax as family  # noqa: E402
+from contextrl.envs.brax.reaching import TargetState  # noqa: E402
+from contextrl.testing import check_env  # noqa: E402
+
+
+@pytest.mark.parametrize(("name", "max_steps"), [("Fetch", 60), ("Ur5e", 200)])
+def test_public_checker_passes_so_every_feature_acts(name, max_steps):
+    """The full checker; each feature is probed along random trajectories of ``max_steps`` steps (the
+    UR5e arm needs 200 to fall onto the floor, where friction acts)."""
+    check_env(getattr(family, name)(max_steps=max_steps), num_contexts=4, steps=9)
+
+
+def _rollout(env, contexts, steps=30):
+    """Observations of one vmapped batch under ``contexts``, every copy given the same random actions."""
+    size = env.action_space.shape[0]
+    actions = jax.random.uniform(jax.random.key(1), (steps, size), minval=-1, maxval=1)
+
+    def one(context):
+        state = env.init(jax.random.key(0), context)
+
+        def body(state, action):
+            state, _, _ = env.transition(jax.random.key(2), state, action, context)
+            return state, env.observe(state, context)
+
+        return jax.lax.scan(body, state, actions)[1]
+
+    return np.asarray(jax.jit(jax.vmap(one))(env.context_space.stack(contexts)))
+
+
+def test_carl_failures_cannot_happen_contexts_reach_the_physics_of_each_copy():
+    """CARL 0.x wrote these tasks' contexts to a wrapper the jitted step never read, one context per
+    batch; here gravity, friction and torso mass each change their own copy of one vmapped batch."""
+    env = family.Fetch()
+    contexts = [
+        env.default_context(),
+        env.context(gravity=2.0),
+        env.context(friction=0.05),
+        env.context(torso_mass=5.0),
+        env.default_context(),
+    ]
+    obs = _rollout(env, contexts)
+    for changed in (1, 2, 3):
+        assert not np.allclose(obs[0], obs[changed]), contexts[changed]
+    np.testing.assert_array_equal(obs[0], obs[4])
+
+
+def test_carl_ur5e_torso_mass_sets_the_wrist_not_the_frozen_floor():
+    """CARL 0.x's UR5e wrote torso_mass into the floor, a frozen body it could not move. Here it is
+    the mass of the arm's last link (the original task's "torso"), and it changes the motion."""
+    env = family.Ur5e()
+    stock, system = env.stock_system, env.system(env.context(torso_mass=5.0))
+    wrist = stock.link_names.index("wrist_3_link") + 1  # MuJoCo's body 0 is the world
+    changed = np.flatnonzero(np.asarray(system.body_mass) != np.asarray(stock.body_mass))
+    assert changed.tolist() == [wrist] and float(system.body_mass[wrist]) == 5.0
+    obs = _rollout(env, [env.default_context(), env.context(torso_mass=5.0)])
+    assert not np.allclose(obs[0], obs[1])
+
+
+def test_targets_are_drawn_beyond_the_radius_within_the_distance():
+    env = family.Fetch()
+    context = env.context(target_distance=3.0, target_radius=0.5)
+    states = jax.vmap(env.init, in_axes=(0, None))(
+        jax.random.split(jax.random.key(0), 512), context
+    )
+    targets = np.asarray(jax.vmap(env.target, in_axes=(0, None))(states, context))
+    distance = np.linalg.norm(targets[:, :2], axis=1)
+    assert 0.5 <= distance.min() < 0.6 and 3.4 < distance.max() <= 3.5
+    angle = np.arctan2(targets[:, 1], targets[:, 0])
+    assert np.histogram(angle, bins=4, range=(-np.pi, np.pi))[0].min() > 90  # every quadrant
+    np.testing.assert_array_equal(targets[:, 2], 1.0)  # Fetch's targets float 1 m up
+
+
+def _wrist_on_target(env, context):
+    """A UR5e state whose wrist, leaning toward +x with the shoulder lifted, sits at the target's
+    height, and the draws that put the target right under the wrist after one still step."""
+    from brax.mjx import pipeline
+
+    sys = env.system(context)
+    q = jnp.zeros(6).at[1].set(1.195)  # wrist at z ≈ 0.163 + 0.917·cos(1.195) ≈ 0.5
+    start = env.init(jax.random.key(0), context)
+    start = TargetState(pipeline.init(sys, q, jnp.zeros(6)), start.target_draws, start.hits)
+    moved, _, _ = env.transition(jax.random.key(1), start, jnp.zeros(6), context)
+    wrist = np.asarray(env.effector_position(moved.pipeline_state))
+    horizontal = np.hypot(wrist[0], wrist[1])
+    fraction = (horizontal - float(context.target_radius)) / float(context.target_distance)
+    draws = jnp.array([fraction, np.arctan2(wrist[1], wrist[0])], jnp.float32)
+    return TargetState(start.pipeline_state, draws, start.hits), wrist
+
+
+def test_a_reached_target_pays_counts_and_moves():
+    """UR5e's reward is 0.1 × progress + 1 on reaching; the reached target moves to a fresh draw and
+    ``targets_reached`` counts it. A target 5 cm off, with a 1 cm radius, is not reached."""
+    env = family.Ur5e()
+    context = env.context(gravity=0.1, target_distance=1.0, target_radius=0.06)
+    state, wrist = _wrist_on_target(env, context)
+    assert abs(wrist[2] - 0.5) < 0.05  # the wrist really is at the targets' height
+    step = jax.jit(env.step)
+    after, timestep = step(
+        jax.random.key(1), EnvState(state, jnp.asarray(0)), jnp.zeros(6), context
+    )
+    assert 0.99 < float(timestep.reward) < 1.1 and int(timestep.info["targets_reached"]) == 1
+    assert not np.array_equal(after.physics.target_draws, state.target_draws)
+
+    tight = env.context(gravity=0.1, target_distance=1.0, target_radius=0.01)
+    off, _ = _wrist_on_target(env, tight)
+    off = TargetState(off.pipeline_state, off.target_draws.at[0].add(0.05), off.hits)
+    _, missed = step(jax.random.key(1), EnvState(off, jnp.asarray(0)), jnp.zeros(6), tight)
+    assert float(missed.reward) < 0.5 and int(missed.info["targets_reached"]) == 0
+
+
+def test_registered_under_carl_names_with_gymnasium_face_render_and_describe(capsys):
+    assert crl.spec("CARLFetch").id == "Fetch" and crl.spec("CARLUr5e").id == "Ur5e"
+    with pytest.raises(ValueError, match="MJX only"):
+        family.Fetch(backend="spring")
+    env = gymnasium.make("contextrl/Ur5e-v0", contexts=[{"target_radius": 0.5}], max_steps=3)
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (19,) and info["context"]["target_radius"] == 0.5
+    obs, reward, terminated, truncated, info = env.step(np.zeros(6, np.float32))
+    assert np.isfinite(reward) and not terminated and "targets_reached" in info
+    env.close()
+
+    ur5e = family.Ur5e()
+    state = ur5e.init(jax.random.key(0), ur5e.default_context())
+    large = ur5e.render_state(state, ur5e.context(target_radius=0.3))
+    small = ur5e.render_state(state, ur5e.context(target_radius=0.05))
+    assert large.ndim == 3 and large.std() > 0
+    # the target is drawn as a sphere of the context's radius: more of the frame is red
+    redness = [np.mean((f[..., 0] > 150) & (f[..., 1] < 120)) for f in (large, small)]
+    assert redness[0] > redness[1], redness
+
+    assert main(["describe", "Ur5e"]) == 0
+    out = capsys.readouterr().out
+    assert "Not offered" in out and "angular_damping" in out and "joint_stiffness:" in out
