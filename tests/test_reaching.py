@@ -23,10 +23,12 @@ from contextrl.envs.brax.reaching import TargetState  # noqa: E402
 from contextrl.testing import check_env  # noqa: E402
 
 
-@pytest.mark.parametrize(("name", "max_steps"), [("Fetch", 60), ("Ur5e", 200)])
+@pytest.mark.parametrize(("name", "max_steps"), [("Fetch", 40), ("Ur5e", 100)])
 def test_public_checker_passes_so_every_feature_acts(name, max_steps):
-    """The full checker; each feature is probed along random trajectories of ``max_steps`` steps (the
-    UR5e arm needs 200 to fall onto the floor, where friction acts)."""
+    """The full checker; each feature is probed in 64 (context pair, key) runs of ``max_steps`` random
+    steps. The fewest runs showing a declared effect, measured under the suite's flags: Fetch 44 of 64
+    (joint_stiffness: a joint must reach its limit); UR5e 16 of 64 (friction: the arm must fall onto
+    the floor and slide)."""
     check_env(getattr(family, name)(max_steps=max_steps), num_contexts=4, steps=9)
 
 
@@ -79,10 +81,9 @@ def test_carl_ur5e_torso_mass_sets_the_wrist_not_the_frozen_floor():
 def test_targets_are_drawn_beyond_the_radius_within_the_distance():
     env = family.Fetch()
     context = env.context(target_distance=3.0, target_radius=0.5)
-    states = jax.vmap(env.init, in_axes=(0, None))(
-        jax.random.split(jax.random.key(0), 512), context
-    )
-    targets = np.asarray(jax.vmap(env.target, in_axes=(0, None))(states, context))
+    keys = jax.random.split(jax.random.key(0), 512)
+    targets = jax.jit(jax.vmap(lambda key: env.target(env.init(key, context), context)))(keys)
+    targets = np.asarray(targets)
     distance = np.linalg.norm(targets[:, :2], axis=1)
     assert 0.5 <= distance.min() < 0.6 and 3.4 < distance.max() <= 3.5
     angle = np.arctan2(targets[:, 1], targets[:, 0])
@@ -95,12 +96,17 @@ def _wrist_on_target(env, context):
     height, and the draws that put the target right under the wrist after one still step."""
     from brax.mjx import pipeline
 
-    sys = env.system(context)
-    q = jnp.zeros(6).at[1].set(1.195)  # wrist at z ≈ 0.163 + 0.917·cos(1.195) ≈ 0.5
-    start = env.init(jax.random.key(0), context)
-    start = TargetState(pipeline.init(sys, q, jnp.zeros(6)), start.target_draws, start.hits)
-    moved, _, _ = env.transition(jax.random.key(1), start, jnp.zeros(6), context)
-    wrist = np.asarray(env.effector_position(moved.pipeline_state))
+    @jax.jit
+    def lifted_and_stepped(context):
+        q = jnp.zeros(6).at[1].set(1.195)  # wrist at z ≈ 0.163 + 0.917·cos(1.195) ≈ 0.5
+        start = env.init(jax.random.key(0), context)
+        physics = pipeline.init(env.system(context), q, jnp.zeros(6))
+        start = TargetState(physics, start.target_draws, start.hits)
+        moved, _, _ = env.transition(jax.random.key(1), start, jnp.zeros(6), context)
+        return start, env.effector_position(moved.pipeline_state)
+
+    start, wrist = lifted_and_stepped(context)
+    wrist = np.asarray(wrist)
     horizontal = np.hypot(wrist[0], wrist[1])
     fraction = (horizontal - float(context.target_radius)) / float(context.target_distance)
     draws = jnp.array([fraction, np.arctan2(wrist[1], wrist[0])], jnp.float32)
