@@ -81,6 +81,10 @@ def family_markdown(family: str, page_dir: str = "families") -> str:
                 "",
             ]
         parts += [markdown_table(feature_rows(env.context_space)), ""]
+        if env.left_out:
+            parts += ["Not offered (they cannot act here):", ""]
+            parts += [f"- `{name}`: {why}" for name, why in env.left_out.items()]
+            parts += [""]
         if env.context_space.rules:
             parts += ["Contexts must also satisfy (checked on every context and every spec):", ""]
             parts += [f"- `{rule.requirement}`: {rule.why}" for rule in env.context_space.rules]

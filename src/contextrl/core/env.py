@@ -68,6 +68,8 @@ class ContextHelpers:
     """What JAX and host environments offer alike about their context (one copy, mixed into both)."""
 
     context_type: ClassVar[type]
+    # Features the original environment had that cannot act here, each with why (``contextrl describe``).
+    left_out: ClassVar[dict[str, str]] = {}
 
     @property
     def name(self) -> str:
@@ -102,8 +104,6 @@ class Env(ContextHelpers):
     default_max_steps: ClassVar[int]
     # True when ``transition`` draws random numbers; otherwise the step key goes to the reset unsplit.
     stochastic_transition: ClassVar[bool] = False
-    # Features the original environment had that cannot act here, each with why (``contextrl describe``).
-    left_out: ClassVar[dict[str, str]] = {}
 
     def __post_init__(self):
         if self.max_steps is None:
