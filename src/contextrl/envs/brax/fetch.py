@@ -107,7 +107,6 @@ class Fetch(ReachingTask):
     n_frames = 4
     effector = "torso"
     torso = "torso"
-    masses = {"torso_mass": ("torso", 1.0)}
     actuator_strength = 300.0
     joint_angular_damping = 35.0
     joint_stiffness = 5000.0

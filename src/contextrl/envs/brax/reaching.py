@@ -1,4 +1,4 @@
-"""The shared machinery of the paper's target-reaching tasks (Fetch, Grasp, UR5e), rebuilt on MJX.
+"""The shared machinery of the paper's target-reaching tasks (Fetch, UR5e), rebuilt on MJX.
 
 brax dropped these tasks in 2023 (they were brax v0.0.x configurations of its first, maximal-coordinate
 engine); here each is a MuJoCo model written from their published configuration and stepped by MJX
@@ -69,7 +69,7 @@ def load_physics(model_xml: str, n_frames: int) -> Physics:
 
 @dataclasses.dataclass(frozen=True)
 class ReachingTask(BraxEnv):
-    """Base of Fetch, Grasp and UR5e: a body (``effector``) is driven to targets the context places."""
+    """Base of Fetch and UR5e: a body (``effector``) is driven to targets the context places."""
 
     model_xml: ClassVar[str]
     n_frames: ClassVar[int]
@@ -88,6 +88,11 @@ class ReachingTask(BraxEnv):
     left_out: ClassVar[dict[str, str]] = {
         "angular_damping": "MJX models no per-body decay of angular velocity (brax v1's angular_damping)",
     }
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "torso" in vars(cls):  # the one mass feature, through the family's mass machinery
+            cls.masses = {"torso_mass": (cls.torso, 1.0)}
 
     def __post_init__(self):
         if self.backend != "mjx" or self.goal or self.fluid:

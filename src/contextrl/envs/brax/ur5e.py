@@ -81,7 +81,6 @@ class Ur5e(ReachingTask):
     n_frames = 8
     effector = "wrist_3_link"
     torso = "wrist_3_link"  # the original task's "torso" (its effector): the wrist's last link
-    masses = {"torso_mass": ("wrist_3_link", 1.0)}
     actuator_strength = 100.0
     joint_angular_damping = 50.0
     joint_stiffness = 40000.0
