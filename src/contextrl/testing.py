@@ -51,10 +51,11 @@ def probe_values(f: Feature) -> list[float]:
     return sorted({c for c in candidates if c != f.default})
 
 
-# Float values differ when they differ beyond rounding: the base and the changed context's step are
-# two computations in one program, which XLA may compile to differently rounding code (under
-# ``--xla_backend_optimization_level=0``, Acrobot's next states then differed in the last bit for
-# features its step never reads).
+# Float values differ when they differ beyond rounding. Before the base and the changed context went
+# through one vmapped computation (``_effects``), they were two computations in one program, which XLA
+# compiled to differently rounding code (under ``--xla_backend_optimization_level=0``, Acrobot's next
+# states differed in the last bit for features its step never reads); the margin stays, for code that
+# rounds differently per vector lane.
 RTOL, ATOL = 1e-5, 1e-6
 
 
