@@ -51,11 +51,10 @@ def probe_values(f: Feature) -> list[float]:
     return sorted({c for c in candidates if c != f.default})
 
 
-# Float values differ when they differ beyond rounding. Before the base and the changed context went
-# through one vmapped computation (``_effects``), they were two computations in one program, which XLA
-# compiled to differently rounding code (under ``--xla_backend_optimization_level=0``, Acrobot's next
-# states differed in the last bit for features its step never reads); the margin stays, for code that
-# rounds differently per vector lane.
+# Float values differ when they differ beyond rounding. Two separately compiled copies of a step
+# round differently (under ``--xla_backend_optimization_level=0``, Acrobot's next states differed in
+# the last bit for features its step never reads), so the base and the changed context go through one
+# vmapped computation (``_effects``); the margin covers code that rounds differently per vector lane.
 RTOL, ATOL = 1e-5, 1e-6
 
 
