@@ -1,6 +1,6 @@
-"""The paper's target-reaching tasks rebuilt on MJX (Fetch, UR5e): the public checker proves every
-feature acts, the CARL failures cannot happen, targets are drawn, reached and moved as the paper's
-tasks did, and the tasks are registered under CARL's names with their gymnasium face and rendering."""
+"""The paper's target-reaching tasks rebuilt on MJX (Fetch, UR5e): the CARL failures cannot happen,
+targets are drawn, reached and moved as the paper's tasks did, and the tasks are registered under CARL's
+names and gymnasium ids, rendered and described (the public checker: test_reaching_checker.py)."""
 
 import importlib.util
 
@@ -20,16 +20,7 @@ from contextrl.cli import main  # noqa: E402
 from contextrl.core.env import EnvState  # noqa: E402
 from contextrl.envs import brax as family  # noqa: E402
 from contextrl.envs.brax.reaching import TargetState  # noqa: E402
-from contextrl.testing import check_env  # noqa: E402
-
-
-@pytest.mark.parametrize(("name", "max_steps"), [("Fetch", 40), ("Ur5e", 100)])
-def test_public_checker_passes_so_every_feature_acts(name, max_steps):
-    """The full checker; each feature is probed in 64 (context pair, key) runs of ``max_steps`` random
-    steps. The fewest runs showing a declared effect, measured under the suite's flags: Fetch 44 of 64
-    (joint_stiffness: a joint must reach its limit); UR5e 16 of 64 (friction: the arm must fall onto
-    the floor and slide)."""
-    check_env(getattr(family, name)(max_steps=max_steps), num_contexts=4, steps=9)
+from contextrl.gymnasium import gym_id  # noqa: E402
 
 
 def _rollout(env, contexts, steps=30):
@@ -91,62 +82,60 @@ def test_targets_are_drawn_beyond_the_radius_within_the_distance():
     np.testing.assert_array_equal(targets[:, 2], 1.0)  # Fetch's targets float 1 m up
 
 
-def _wrist_on_target(env, context):
-    """A UR5e state whose wrist, leaning toward +x with the shoulder lifted, sits at the target's
-    height, and the draws that put the target right under the wrist after one still step."""
+def _step_with_wrist_lifted(env):
+    """A compiled UR5e step from joint angles that put the wrist at the targets' height (shoulder
+    lifted, leaning toward +x) and given target draws: the timestep, the next draws, the wrist."""
     from brax.mjx import pipeline
 
     @jax.jit
-    def lifted_and_stepped(context):
+    def step(draws, context):
         q = jnp.zeros(6).at[1].set(1.195)  # wrist at z ≈ 0.163 + 0.917·cos(1.195) ≈ 0.5
-        start = env.init(jax.random.key(0), context)
         physics = pipeline.init(env.system(context), q, jnp.zeros(6))
-        start = TargetState(physics, start.target_draws, start.hits)
-        moved, _, _ = env.transition(jax.random.key(1), start, jnp.zeros(6), context)
-        return start, env.effector_position(moved.pipeline_state)
+        state = EnvState(TargetState(physics, draws, jnp.asarray(0)), jnp.asarray(0))
+        after, timestep = env.step(jax.random.key(1), state, jnp.zeros(6), context)
+        wrist = env.effector_position(after.physics.pipeline_state)
+        return timestep, after.physics.target_draws, wrist
 
-    start, wrist = lifted_and_stepped(context)
-    wrist = np.asarray(wrist)
-    horizontal = np.hypot(wrist[0], wrist[1])
+    return step
+
+
+def _draws_at(point, context):
+    """The target draws that put the target right under ``point`` (x, y)."""
+    horizontal = np.hypot(point[0], point[1])
     fraction = (horizontal - float(context.target_radius)) / float(context.target_distance)
-    draws = jnp.array([fraction, np.arctan2(wrist[1], wrist[0])], jnp.float32)
-    return TargetState(start.pipeline_state, draws, start.hits), wrist
+    return jnp.array([fraction, np.arctan2(point[1], point[0])], jnp.float32)
 
 
 def test_a_reached_target_pays_counts_and_moves():
     """UR5e's reward is 0.1 × progress + 1 on reaching; the reached target moves to a fresh draw and
     ``targets_reached`` counts it. A target 5 cm off, with a 1 cm radius, is not reached."""
     env = family.Ur5e()
+    step = _step_with_wrist_lifted(env)
     context = env.context(gravity=0.1, target_distance=1.0, target_radius=0.06)
-    state, wrist = _wrist_on_target(env, context)
+    _, _, wrist = step(jnp.zeros(2), context)  # where the wrist ends (the target does not move it)
+    wrist = np.asarray(wrist)
     assert abs(wrist[2] - 0.5) < 0.05  # the wrist really is at the targets' height
-    step = jax.jit(env.step)
-    after, timestep = step(
-        jax.random.key(1), EnvState(state, jnp.asarray(0)), jnp.zeros(6), context
-    )
+    draws = _draws_at(wrist, context)
+    timestep, after, _ = step(draws, context)
     assert 0.99 < float(timestep.reward) < 1.1 and int(timestep.info["targets_reached"]) == 1
-    assert not np.array_equal(after.physics.target_draws, state.target_draws)
+    assert not np.array_equal(after, draws)
 
     tight = env.context(gravity=0.1, target_distance=1.0, target_radius=0.01)
-    off, _ = _wrist_on_target(env, tight)
-    off = TargetState(off.pipeline_state, off.target_draws.at[0].add(0.05), off.hits)
-    _, missed = step(jax.random.key(1), EnvState(off, jnp.asarray(0)), jnp.zeros(6), tight)
+    off = _draws_at(wrist, tight).at[0].add(0.05)  # 5 cm farther out than the wrist
+    missed, kept, _ = step(off, tight)
     assert float(missed.reward) < 0.5 and int(missed.info["targets_reached"]) == 0
+    np.testing.assert_array_equal(kept, off)
 
 
-def test_registered_under_carl_names_with_gymnasium_face_render_and_describe(capsys):
+def test_registered_under_carl_names_and_gymnasium_ids_rendered_and_described(capsys):
     assert crl.spec("CARLFetch").id == "Fetch" and crl.spec("CARLUr5e").id == "Ur5e"
     with pytest.raises(ValueError, match="MJX only"):
         family.Fetch(backend="spring")
-    env = gymnasium.make("contextrl/Ur5e-v0", contexts=[{"target_radius": 0.5}], max_steps=3)
-    obs, info = env.reset(seed=0)
-    assert obs.shape == (19,) and info["context"]["target_radius"] == 0.5
-    obs, reward, terminated, truncated, info = env.step(np.zeros(6, np.float32))
-    assert np.isfinite(reward) and not terminated and "targets_reached" in info
-    env.close()
+    for name in ("Fetch", "CARLFetch", "Ur5e", "CARLUr5e"):
+        assert gym_id(name) in gymnasium.registry
 
     ur5e = family.Ur5e()
-    state = ur5e.init(jax.random.key(0), ur5e.default_context())
+    state = jax.jit(ur5e.init)(jax.random.key(0), ur5e.default_context())
     large = ur5e.render_state(state, ur5e.context(target_radius=0.3))
     small = ur5e.render_state(state, ur5e.context(target_radius=0.05))
     assert large.ndim == 3 and large.std() > 0

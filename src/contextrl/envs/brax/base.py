@@ -331,7 +331,9 @@ class BraxEnv(Env):
         import mujoco
 
         model, data, renderer = _renderer(type(self), self.backend, self.fluid, height, width)
-        model.body_pos[:] = np.asarray(self.system(context).body_pos)
+        stock = self._brax.sys  # only a task's own bodies (Pusher's goal) move with the context
+        moved = self.task_system_changes(stock, context.as_dict()).get("body_pos", stock.body_pos)
+        model.body_pos[:] = np.asarray(moved)
         self.paint(model, context)
         data.qpos[:], data.qvel[:] = (
             np.asarray(state.pipeline_state.q),
