@@ -3,9 +3,10 @@
 The model is written from brax v0.0.x's configuration of the task: a torso with shoulders and hips, each
 carrying two legs of an upper and a lower segment (boxes of 1 kg, unit inertia); ten hinges limited to
 ±60° (the spine's two turn about the body's long axis, the legs' about its side axis), each driven by a
-motor of 300 N·m and damped at 35 N·m·s/rad; only the lower legs touch the ground; 4 physics steps of
-5 ms per action. The reward, as the original's: 0.1·dt·torso height + 0.1 × progress toward the target
-+ 0.1·dt·uprightness + (on reaching it) how squarely the torso faces the target.
+motor of 300 N·m and damped at 35 N·m·s/rad; only the lower legs touch the ground, as capsules of the
+boxes' extent (box–ground contacts made a step about a fifth slower); 4 physics steps of 5 ms per
+action. The reward, as the original's: 0.1·dt·torso height + 0.1 × progress toward the target +
+0.1·dt·uprightness + (on reaching it) how squarely the torso faces the target.
 """
 
 from __future__ import annotations

@@ -203,15 +203,12 @@ class ReachingTask(BraxEnv):
         return Box(-np.ones(size, np.float32), np.ones(size, np.float32))
 
     def init(self, key, context):
-        pipeline_key, target_key = jax.random.split(key)
-        pipeline_state = self.start(pipeline_key, self.system(context))
-        return TargetState(pipeline_state, self.draw_target(target_key), jnp.asarray(0, jnp.int32))
-
-    def start(self, key, sys):
-        """The physics at an episode's start: the model's initial pose, at rest."""
+        """The model's initial pose at rest (as the original tasks start) and a freshly drawn target."""
         from brax.mjx import pipeline
 
-        return pipeline.init(sys, sys.init_q, jnp.zeros(sys.qd_size()))
+        sys = self.system(context)
+        pipeline_state = pipeline.init(sys, sys.init_q, jnp.zeros(sys.qd_size()))
+        return TargetState(pipeline_state, self.draw_target(key), jnp.asarray(0, jnp.int32))
 
     def transition(self, key, state, action, context):
         from brax.mjx import pipeline
