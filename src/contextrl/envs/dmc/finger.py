@@ -8,8 +8,7 @@ refused with a clear error.
 
 The stock model disables gravity (``<flag gravity="disable"/>``): ``gravity`` defaults to 0, the
 stock state, and a positive value turns the flag on, so gravity pulls the finger and the spinner.
-Left out: ``joint_stiffness`` (stock stiffness is 0), ``wind_y`` (the finger moves in the x-z
-plane), torsional and rolling friction (contacts have condim 3).
+Features that cannot act here: ``DmcFinger.left_out``.
 """
 
 from __future__ import annotations
@@ -101,6 +100,11 @@ class DmcFinger(base.DmcEnv):
     domain = "finger"
     default_task = "spin"
     context_type = DmcFingerContext
+    left_out = {
+        "joint_stiffness": "the stock stiffness is 0",
+        "wind_y": "the finger moves in the x-z plane",
+        "torsional and rolling friction": "contacts have condim 3",
+    }
 
     def __init__(self, task: str | None = None, **kwargs):
         super().__init__(task, **kwargs)

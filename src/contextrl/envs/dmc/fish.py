@@ -1,7 +1,7 @@
 """Fish (dm_control ``fish-swim`` by default): a fish swimming in a dense medium towards a target.
 
 The stock model disables gravity and every constraint (no contacts, no limits) and sets the medium
-density to 5000 kg/m³. Left out: friction (no contacts). ``gravity`` defaults to 0 (the stock
+density to 5000 kg/m³. Friction cannot act (``DmcFish.left_out``). ``gravity`` defaults to 0 (the stock
 disabled state); a positive value enables it and the fish sinks.
 
 This 30-gram fish in a dense medium is the stiffest of the family for MuJoCo's explicit fluid forces,
@@ -39,3 +39,6 @@ class DmcFish(base.DmcEnv):
     domain = "fish"
     default_task = "swim"
     context_type = DmcFishContext
+    left_out = {
+        "friction": "the fish touches nothing",
+    }

@@ -8,9 +8,7 @@ start is ``(starting_x, starting_y) + start_spread * u`` with ``u`` the stock dr
 arena, so the defaults (0, 0, 1) are the stock start and ``start_spread = 0`` a fixed one.
 A start or target outside the arena is refused with a clear error.
 
-Left out: ``gravity`` (the ball slides on two horizontal joints; gravity is perpendicular to both),
-friction (the stock model disables contacts), ``joint_stiffness`` (stock stiffness is 0),
-``wind_z`` (vertical), ``geom_density`` (the ball's mass is set explicitly: use ``mass``).
+Features that cannot act here: ``DmcPointMass.left_out``.
 """
 
 from __future__ import annotations
@@ -66,6 +64,13 @@ class DmcPointMass(base.DmcEnv):
     domain = "point_mass"
     default_task = "easy"
     context_type = DmcPointMassContext
+    left_out = {
+        "gravity": "the ball slides on two horizontal joints; gravity is perpendicular to both",
+        "friction": "the stock model disables contacts",
+        "joint_stiffness": "the stock stiffness is 0",
+        "wind_z": "vertical, perpendicular to both joints",
+        "geom_density": "the ball's mass is set explicitly: use mass",
+    }
 
     def __init__(self, task: str | None = None, **kwargs):
         super().__init__(task, **kwargs)

@@ -1,7 +1,6 @@
 """Quadruped (dm_control ``quadruped-walk`` by default): a four-legged ant walking in 3-D.
 
-Left out: ``joint_stiffness`` (every stock stiffness is 0), torsional and rolling friction (the
-body's contacts have condim 1 or 3; only the ``fetch`` ball has condim 6). Actuators are filtered
+Features that cannot act here: ``DmcQuadruped.left_out``. Actuators are filtered
 position servos, so ``actuator_strength`` scales their gain and bias (see ``base``).
 """
 
@@ -34,3 +33,7 @@ class DmcQuadruped(base.DmcEnv):
     domain = "quadruped"
     default_task = "walk"
     context_type = DmcQuadrupedContext
+    left_out = {
+        "joint_stiffness": "every stock stiffness is 0",
+        "torsional and rolling friction": "the body's contacts have condim 1 or 3; only the fetch ball has condim 6",
+    }

@@ -1,9 +1,6 @@
 """Walker (dm_control ``walker-walk`` by default): a planar biped that stands, walks or runs.
 
-Features left out because they cannot act here: ``joint_stiffness`` (every stock stiffness is 0, so a
-scale of it is 0), ``wind_y`` (the walker moves in the x-z plane; a wind across it exerts no force on
-any degree of freedom), torsional and rolling friction (the walker's contacts have condim 3, which
-has only sliding friction).
+Features that cannot act here are listed, with why, in ``DmcWalker.left_out``.
 """
 
 from __future__ import annotations
@@ -34,3 +31,8 @@ class DmcWalker(base.DmcEnv):
     domain = "walker"
     default_task = "walk"
     context_type = DmcWalkerContext
+    left_out = {
+        "joint_stiffness": "every stock stiffness is 0, so a scale of it is 0",
+        "wind_y": "the walker moves in the x-z plane; a wind across it exerts no force on any degree of freedom",
+        "torsional and rolling friction": "the walker's contacts have condim 3, which has only sliding friction",
+    }
