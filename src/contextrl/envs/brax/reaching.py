@@ -77,7 +77,7 @@ class ReachingTask(BraxEnv):
     # the paper's defaults and the upper bounds of the features that scale a stock value
     actuator_strength: ClassVar[float]
     joint_angular_damping: ClassVar[float]
-    joint_stiffness: ClassVar[float]
+    joint_stiffness: ClassVar[float | None]  # None: the joints have no limits to stiffen
     target_distance: ClassVar[tuple[float, float, float]]  # default, lower, upper
     target_radius: ClassVar[tuple[float, float, float]]
     target_height: ClassVar[float]  # z of a target
@@ -128,13 +128,10 @@ class ReachingTask(BraxEnv):
                 unit="N·m·s/rad",
                 doc="damping of every joint (torque per unit angular velocity)",
             ),
-            "joint_stiffness": feature(
-                cls.joint_stiffness,
-                1.0,
-                10 * cls.joint_stiffness,
-                unit="1/s²",
+            **({} if cls.joint_stiffness is None else {"joint_stiffness": feature(
+                cls.joint_stiffness, 1.0, 10 * cls.joint_stiffness, unit="1/s²",
                 doc="stiffness of every joint's angle limit (acceleration per radian past it)",
-            ),
+            )}),
             "torso_mass": feature(
                 1.0, 0.1, 10.0, unit="kg", doc=f"mass of the {cls.torso} (its inertia scales with it)"
             ),
