@@ -45,6 +45,22 @@ class UndeclaredGoalCartPole(CartPole):
         return next_state, reward, terminated | (context.initial_state_upper > 0.15)
 
 
+@dataclasses.dataclass(frozen=True)
+class DivergingCartPole(CartPole):
+    """A feature value inside its bounds that breaks the physics: a pole of length 0.05 (the lower
+    bound) gives NaN, as MJX's contacts did at friction 0."""
+
+    def transition(self, key, state, action, context):
+        next_state, reward, terminated = super().transition(key, state, action, context)
+        broken = jnp.where(context.length < 0.06, jnp.nan, 0.0)
+        return next_state + broken, reward, terminated
+
+
+def test_checker_catches_a_feature_value_that_diverges():
+    with pytest.raises(AssertionError, match=r"length = 0\.05 \(inside its bounds .*non-finite"):
+        check_feature_effects(DivergingCartPole(), jax.random.key(0))
+
+
 def test_checker_catches_a_feature_that_does_nothing():
     with pytest.raises(AssertionError, match="masscart: declared to affect dynamics"):
         check_feature_effects(StaleMassCartPole(), jax.random.key(0))

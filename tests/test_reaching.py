@@ -1,6 +1,7 @@
-"""The paper's target-reaching tasks rebuilt on MJX (Fetch, UR5e): the CARL failures cannot happen,
-targets are drawn, reached and moved as the paper's tasks did, and the tasks are registered under CARL's
-names and gymnasium ids, rendered and described (the public checker: test_reaching_checker.py)."""
+"""The paper's target-reaching tasks rebuilt on MJX (Fetch, Grasp, UR5e): the CARL failures cannot
+happen, targets are drawn, reached and moved as the paper's tasks did, Grasp's claw picks up and carries
+its object, and the tasks are registered under CARL's names and gymnasium ids, rendered and described
+(the public checker: test_reaching_checker.py)."""
 
 import importlib.util
 
@@ -103,7 +104,7 @@ def _draws_at(point, context):
     """The target draws that put the target right under ``point`` (x, y)."""
     horizontal = np.hypot(point[0], point[1])
     fraction = (horizontal - float(context.target_radius)) / float(context.target_distance)
-    return jnp.array([fraction, np.arctan2(point[1], point[0])], jnp.float32)
+    return jnp.array([fraction, np.arctan2(point[1], point[0]), 0.0], jnp.float32)
 
 
 def test_a_reached_target_pays_counts_and_moves():
@@ -112,7 +113,7 @@ def test_a_reached_target_pays_counts_and_moves():
     env = family.Ur5e()
     step = _step_with_wrist_lifted(env)
     context = env.context(gravity=0.1, target_distance=1.0, target_radius=0.06)
-    _, _, wrist = step(jnp.zeros(2), context)  # where the wrist ends (the target does not move it)
+    _, _, wrist = step(jnp.zeros(3), context)  # where the wrist ends (the target does not move it)
     wrist = np.asarray(wrist)
     assert abs(wrist[2] - 0.5) < 0.05  # the wrist really is at the targets' height
     draws = _draws_at(wrist, context)
@@ -127,11 +128,75 @@ def test_a_reached_target_pays_counts_and_moves():
     np.testing.assert_array_equal(kept, off)
 
 
+def _grasp_and_carry(env):
+    """A compiled scripted Grasp episode (draws, context) → (object positions, targets reached): the
+    open claw goes down onto the object, closes (proximal joints 45° in, middle 67.5°, distal 90°),
+    lifts it, and carries it toward +x."""
+    closed = jnp.tile(jnp.array([1.0, 0.5, 1.0]), 4)
+
+    def action(t):
+        fingers = jnp.where(t < 20, -jnp.ones(12), closed)
+        palm_x = jnp.where(t < 90, 0.0, 0.5)  # toward x = 5
+        palm_z = jnp.where(t < 60, -1.0, 0.0)  # down to 3.5, then up toward 8.5
+        return jnp.concatenate([fingers, jnp.stack([palm_x, 0.0, palm_z])])
+
+    @jax.jit
+    def episode(draws, context):
+        state = env.init(jax.random.key(0), context)
+        state = TargetState(state.pipeline_state, draws, state.hits)
+
+        def body(state, t):
+            state, _, _ = env.transition(jax.random.key(1), state, action(t), context)
+            return state, env.effector_position(state.pipeline_state)
+
+        state, held = jax.lax.scan(body, state, jnp.arange(110))
+        return held, state.hits
+
+    return episode
+
+
+def test_the_claw_picks_up_the_object_and_carries_it_to_a_target():
+    """Grasp's claw closes on the object, lifts it and carries it; a target placed on that path is
+    reached (the object within ``target_radius``) and counted. With motors of 1 N·m instead of 300
+    the claw cannot close and the object stays on the floor."""
+    env = family.Grasp()
+    episode = _grasp_and_carry(env)
+    context = env.default_context()
+    held, hits = episode(jnp.zeros(3), context)
+    held = np.asarray(held)
+    assert held[59, 2] < 1.5 and held[89, 2] > 3.5 and int(hits) == 0  # lifted from the floor
+    assert held[100, 0] > 1.5  # carried toward +x
+    # a target where the object passes at step 100: along +x beyond the radius, at its height
+    passed = held[100]
+    draws = jnp.array(
+        [
+            (np.hypot(passed[0], passed[1]) - float(context.target_radius))
+            / float(context.target_distance),
+            np.arctan2(passed[1], passed[0]),
+            passed[2] / float(context.target_height),
+        ]
+    )
+    _, hits = episode(draws, context)
+    assert int(hits) >= 1
+    weak, _ = episode(jnp.zeros(3), env.context(actuator_strength=1.0))
+    assert np.asarray(weak)[:, 2].max() < 1.5
+
+
+def test_grasp_targets_are_drawn_up_to_the_target_height():
+    env = family.Grasp()
+    context = env.context(target_height=4.0)
+    keys = jax.random.split(jax.random.key(0), 512)
+    targets = jax.jit(jax.vmap(lambda key: env.target(env.init(key, context), context)))(keys)
+    heights = np.asarray(targets)[:, 2]
+    assert 0.0 <= heights.min() < 0.1 and 3.9 < heights.max() <= 4.0
+
+
 def test_registered_under_carl_names_and_gymnasium_ids_rendered_and_described(capsys):
-    assert crl.spec("CARLFetch").id == "Fetch" and crl.spec("CARLUr5e").id == "Ur5e"
+    for name in ("Fetch", "Grasp", "Ur5e"):
+        assert crl.spec(f"CARL{name}").id == name
     with pytest.raises(ValueError, match="MJX only"):
         family.Fetch(backend="spring")
-    for name in ("Fetch", "CARLFetch", "Ur5e", "CARLUr5e"):
+    for name in ("Fetch", "CARLFetch", "Grasp", "CARLGrasp", "Ur5e", "CARLUr5e"):
         assert gym_id(name) in gymnasium.registry
 
     ur5e = family.Ur5e()

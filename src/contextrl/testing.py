@@ -65,6 +65,12 @@ def _leaf_differs(x, y) -> jax.Array:
     return jnp.any(apart & jnp.isfinite(x) & jnp.isfinite(y))
 
 
+def _finite(tree) -> jax.Array:
+    """Whether every float in a pytree is finite."""
+    leaves = jax.tree_util.tree_leaves(tree)
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(leaf)) for leaf in leaves]))
+
+
 def _differs(a, b) -> jax.Array:
     """Whether two pytrees differ anywhere both are finite (diverged physics is not an effect) by
     more than rounding (``RTOL``, ``ATOL``)."""
@@ -102,6 +108,10 @@ def _effects(env: Env, steps: int):
                 base, changed
             )
             observations = both(env.observe, state)(base, changed)
+            finite = [
+                _finite((env.state_variables(pick(nexts, i)), rewards[i], observations[i]))
+                for i in (0, 1)
+            ]
             shown = jnp.stack(
                 [
                     _differs(
@@ -110,6 +120,7 @@ def _effects(env: Env, steps: int):
                     _differs(rewards[0], rewards[1]),
                     terms[0] != terms[1],
                     _differs(observations[0], observations[1]),
+                    finite[0] & ~finite[1],  # the changed value alone broke the physics
                 ]
             )
             restart = env.init(reset_key, base)
@@ -119,8 +130,9 @@ def _effects(env: Env, steps: int):
             return state, shown
 
         _, shown = jax.lax.scan(body, pick(starts, 0), jax.random.split(run_key, steps))
-        dynamics, reward, termination, observation = jnp.any(shown, axis=0)
+        dynamics, reward, termination, observation, diverged = jnp.any(shown, axis=0)
         return {
+            "diverged": diverged,
             "start_state": _differs(
                 env.state_variables(pick(starts, 0)), env.state_variables(pick(starts, 1))
             ),
@@ -159,6 +171,12 @@ def check_feature_effects(
         changed_values = jnp.asarray(np.array([p for _, p, _ in pairs]), f.dtype)
         changed = dataclasses.replace(base, **{name: changed_values})
         shown = effects(base, changed, keys[np.array([k for _, _, k in pairs])])
+        diverged = sorted({pairs[i][1] for i in np.flatnonzero(np.asarray(shown.pop("diverged")))})
+        if diverged:
+            problems.append(
+                f"{name} = {', '.join(map(str, diverged))} (inside its bounds [{f.lower}, "
+                f"{f.upper}]) gave non-finite states, rewards or observations"
+            )
         shown = {effect: bool(np.any(v)) for effect, v in shown.items()}
         observed[name] = shown
         declared = set(f.affects)

@@ -45,7 +45,7 @@ BRAX_ENVIRONMENTS = (
     "Reacher",
     "Pusher",
 )
-REACHING_ENVIRONMENTS = ("Fetch", "Ur5e")
+REACHING_ENVIRONMENTS = ("Fetch", "Grasp", "Ur5e")
 
 
 def _make_brax(name: str, **kwargs):

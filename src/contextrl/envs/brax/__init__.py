@@ -1,5 +1,5 @@
 """The Brax family (extra ``brax``): brax's ten locomotion and control tasks on its physics, MJX by
-default, and the paper's target-reaching tasks (Fetch, UR5e) rebuilt on MJX.
+default, and the paper's target-reaching tasks (Fetch, Grasp, UR5e) rebuilt on MJX.
 
 Every copy of a batch runs its own physical system, built from its context inside the compiled step.
 """
@@ -18,6 +18,7 @@ from contextrl.envs.brax.environments import (
     Walker2d,
 )
 from contextrl.envs.brax.fetch import Fetch
+from contextrl.envs.brax.grasp import Grasp
 from contextrl.envs.brax.reaching import ReachingTask
 from contextrl.envs.brax.ur5e import Ur5e
 
@@ -33,7 +34,7 @@ ENVIRONMENTS = (
     Reacher,
     Pusher,
 )
-REACHING_ENVIRONMENTS = (Fetch, Ur5e)
+REACHING_ENVIRONMENTS = (Fetch, Grasp, Ur5e)
 
 __all__ = [
     "BACKENDS",
@@ -43,6 +44,7 @@ __all__ = [
     "Ant",
     "BraxEnv",
     "Fetch",
+    "Grasp",
     "HalfCheetah",
     "Hopper",
     "Humanoid",

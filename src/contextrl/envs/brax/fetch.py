@@ -57,7 +57,7 @@ JOINTS = (
 MODEL = f"""
 <mujoco model="fetch">
   <compiler angle="degree"/>
-  <option timestep="0.005" gravity="0 0 -9.8" iterations="1" ls_iterations="4"/>
+  <option timestep="0.005" gravity="0 0 -9.8" iterations="2" ls_iterations="4"/>
   <default>
     <joint type="hinge" limited="true" range="-60 60" damping="35" solreflimit="-5000 -100"/>
     <geom type="box" contype="0" conaffinity="0" friction="0.6 0.005 0.0001" rgba="0.8 0.6 0.4 1"/>
@@ -139,7 +139,7 @@ class Fetch(ReachingTask):
         height = 0.1 * self.control_timestep * position[2]
         upright = 0.1 * self.control_timestep * up[2]
         facing = jnp.where(hit, jnp.dot(direction, forward), 0.0)
-        return height + self.moving_to_target(before, after, target) + upright + facing
+        return height + 0.1 * self.progress(before, after, target) + upright + facing
 
     def observe(self, state, context) -> jax.Array:
         from brax import math as brax_math
@@ -163,15 +163,7 @@ class Fetch(ReachingTask):
                 target / (1e-6 + distance),
                 offsets[jnp.asarray(others)].reshape(-1),
                 velocities.reshape(-1),
-                self._feet_touching(physics),
+                self.touching(physics, FEET),
             ]
         )
 
-    def _feet_touching(self, physics) -> jax.Array:
-        """1 for each lower leg touching the ground, else 0."""
-        contact = physics.contact
-        geoms = [self._brax.sys.mj_model.geom(foot).id for foot in FEET]
-        touching = contact.dist < 0
-        return jnp.stack(
-            [jnp.any(touching & ((contact.geom1 == g) | (contact.geom2 == g))) for g in geoms]
-        ).astype(jnp.float32)

@@ -1,4 +1,4 @@
-"""The shared machinery of the paper's target-reaching tasks (Fetch, UR5e), rebuilt on MJX.
+"""The shared machinery of the paper's target-reaching tasks (Fetch, Grasp, UR5e), rebuilt on MJX.
 
 brax dropped these tasks in 2023 (they were brax v0.0.x configurations of its first, maximal-coordinate
 engine); here each is a MuJoCo model written from their published configuration and stepped by MJX
@@ -30,6 +30,9 @@ from contextrl.context.features import feature
 from contextrl.core.spaces import Box
 from contextrl.envs.brax.base import BraxEnv, _quiet_brax
 
+# Below this MJX's pyramidal friction cones turn singular: Fetch gave NaN at 0 and 0.005 and flew off
+# at 0.0001, none at 0.01 (100 random steps, 4 runs each); the paper's ice is 0.05.
+MIN_FRICTION = 0.05
 # The joint limits' damping (direct form, the constraint's velocity gain): held fixed, so that
 # ``joint_stiffness`` changes only the stiffness of the limit.
 LIMIT_DAMPING = 100.0
@@ -60,16 +63,18 @@ class Physics:
 
 @functools.cache
 def load_physics(model_xml: str, n_frames: int) -> Physics:
-    """The system of one task's MJCF, loaded once per process."""
+    """The system of one task's MJCF, loaded once per process (compiled by MuJoCo as written: brax's
+    ``mjcf.loads`` would fuse a jointless body, such as Grasp's mocap palm, into its parent)."""
     with _quiet_brax():
+        import mujoco
         from brax.io import mjcf
 
-        return Physics(mjcf.loads(model_xml), n_frames)
+        return Physics(mjcf.load_model(mujoco.MjModel.from_xml_string(model_xml)), n_frames)
 
 
 @dataclasses.dataclass(frozen=True)
 class ReachingTask(BraxEnv):
-    """Base of Fetch and UR5e: a body (``effector``) is driven to targets the context places."""
+    """Base of Fetch, Grasp and UR5e: a body (``effector``) is driven to targets the context places."""
 
     model_xml: ClassVar[str]
     n_frames: ClassVar[int]
@@ -80,8 +85,8 @@ class ReachingTask(BraxEnv):
     joint_stiffness: ClassVar[float | None]  # None: the joints have no limits to stiffen
     target_distance: ClassVar[tuple[float, float, float]]  # default, lower, upper
     target_radius: ClassVar[tuple[float, float, float]]
-    target_height: ClassVar[float]  # z of a target
-    torso: ClassVar[str]  # the body ``torso_mass`` sets (its stock mass is 1 kg)
+    target_height: ClassVar[float]  # z of a target (Grasp: the feature's default)
+    torso: ClassVar[str | None] = None  # the body ``torso_mass`` sets (stock 1 kg); None: no feature
     stochastic_transition = True  # a reached target moves to a fresh random place
 
     brax_name = ""  # not one of brax's tasks
@@ -91,7 +96,7 @@ class ReachingTask(BraxEnv):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if "torso" in vars(cls):  # the one mass feature, through the family's mass machinery
+        if cls.torso:  # the one mass feature, through the family's mass machinery
             cls.masses = {"torso_mass": (cls.torso, 1.0)}
 
     def __post_init__(self):
@@ -113,7 +118,7 @@ class ReachingTask(BraxEnv):
             "gravity": feature(
                 gravity, 0.1, 30.0, unit="m/s²", doc="gravitational acceleration, pointing down"
             ),
-            "friction": feature(0.6, 0.0, 5.0, doc="sliding friction of every contact"),
+            "friction": feature(0.6, MIN_FRICTION, 5.0, doc="sliding friction of every contact"),
             "actuator_strength": feature(
                 cls.actuator_strength,
                 1.0,
@@ -132,9 +137,9 @@ class ReachingTask(BraxEnv):
                 cls.joint_stiffness, 1.0, 10 * cls.joint_stiffness, unit="1/s²",
                 doc="stiffness of every joint's angle limit (acceleration per radian past it)",
             )}),
-            "torso_mass": feature(
+            **({} if cls.torso is None else {"torso_mass": feature(
                 1.0, 0.1, 10.0, unit="kg", doc=f"mass of the {cls.torso} (its inertia scales with it)"
-            ),
+            )}),
             "target_distance": feature(
                 distance[0], distance[1], distance[2], unit="m", affects=("goal", "observation"),
                 doc="targets are drawn up to this far beyond target_radius from the origin",
@@ -153,10 +158,7 @@ class ReachingTask(BraxEnv):
             "opt.gravity": gravity,
             "gravity": gravity,
             "geom_friction": jnp.asarray(stock.geom_friction).at[:, 0].set(context.friction),
-            "actuator_gear": jnp.asarray(stock.actuator_gear)
-            .at[:, 0]
-            .set(context.actuator_strength),
-            "actuator.gear": jnp.full_like(stock.actuator.gear, context.actuator_strength),
+            **self.actuator_changes(stock, context.actuator_strength),
             "dof_damping": self._joint_dofs(jnp.asarray(stock.dof_damping), context),
             "dof.damping": self._joint_dofs(jnp.asarray(stock.dof.damping), context),
         }
@@ -164,8 +166,16 @@ class ReachingTask(BraxEnv):
             limited = np.asarray(stock.jnt_limited, bool)[:, None]
             solref = jnp.stack([-context.joint_stiffness, jnp.asarray(-LIMIT_DAMPING)])
             changes["jnt_solref"] = jnp.where(limited, solref, jnp.asarray(stock.jnt_solref))
-        changes.update(self._mass_changes(stock, {"torso_mass": context.torso_mass}))
+        if self.masses:
+            changes.update(self._mass_changes(stock, {"torso_mass": context.torso_mass}))
         return stock.tree_replace(changes)
+
+    def actuator_changes(self, stock, strength) -> dict[str, jax.Array]:
+        """Every motor's gear (torque at full action) set to ``strength``."""
+        return {
+            "actuator_gear": jnp.asarray(stock.actuator_gear).at[:, 0].set(strength),
+            "actuator.gear": jnp.full_like(stock.actuator.gear, strength),
+        }
 
     def _joint_dofs(self, damping, context):
         """``damping`` with every hinge's value set to the context's (a free joint's dofs keep theirs)."""
@@ -176,16 +186,20 @@ class ReachingTask(BraxEnv):
     # ---- targets -----------------------------------------------------------------------------------
     def target(self, state, context) -> jax.Array:
         """Where the current target is: ``target_radius + target_distance·U`` from the origin, at the
-        drawn angle, ``target_height`` above the floor."""
+        drawn angle, at ``target_elevation``."""
         fraction, angle = state.target_draws[0], state.target_draws[1]
         distance = context.target_radius + context.target_distance * fraction
-        return jnp.stack(
-            [distance * jnp.cos(angle), distance * jnp.sin(angle), jnp.asarray(self.target_height)]
-        )
+        elevation = self.target_elevation(state, context)
+        return jnp.stack([distance * jnp.cos(angle), distance * jnp.sin(angle), elevation])
+
+    def target_elevation(self, state, context) -> jax.Array:
+        """The target's height above the floor: the task's fixed ``target_height``."""
+        return jnp.asarray(self.target_height)
 
     def draw_target(self, key) -> jax.Array:
-        """A fresh target's draws: U ∈ [0, 1) and an angle uniform in [0, 2π)."""
-        return jax.random.uniform(key, (2,)) * jnp.array([1.0, 2 * jnp.pi])
+        """A fresh target's draws: U ∈ [0, 1), an angle uniform in [0, 2π), and a second U (Grasp's
+        height fraction)."""
+        return jax.random.uniform(key, (3,)) * jnp.array([1.0, 2 * jnp.pi, 1.0])
 
     def effector_position(self, pipeline_state) -> jax.Array:
         return pipeline_state.x.pos[self._link(self.effector)]
@@ -200,22 +214,18 @@ class ReachingTask(BraxEnv):
         return Box(-np.ones(size, np.float32), np.ones(size, np.float32))
 
     def init(self, key, context):
-        """The model's initial pose at rest (as the original tasks start) and a freshly drawn target."""
+        """The task's initial pose at rest (as the original tasks start) and a freshly drawn target."""
         from brax.mjx import pipeline
 
         sys = self.system(context)
-        pipeline_state = pipeline.init(sys, sys.init_q, jnp.zeros(sys.qd_size()))
+        pipeline_state = pipeline.init(sys, self.initial_pose(), jnp.zeros(sys.qd_size()))
         return TargetState(pipeline_state, self.draw_target(key), jnp.asarray(0, jnp.int32))
 
     def transition(self, key, state, action, context):
         from brax.mjx import pipeline
 
         sys = self.system(context)
-
-        def frame(pipeline_state, _):
-            return pipeline.step(sys, pipeline_state, action), None
-
-        after, _ = jax.lax.scan(frame, state.pipeline_state, (), self.n_frames)
+        after = self.physics_step(sys, state.pipeline_state, action)
         target = self.target(state, context)
         hit = jnp.linalg.norm(target - self.effector_position(after)) < context.target_radius
         reward = self.reward(state.pipeline_state, after, target, hit)
@@ -223,15 +233,42 @@ class ReachingTask(BraxEnv):
         next_state = TargetState(after, draws, state.hits + hit.astype(jnp.int32))
         return next_state, reward, jnp.asarray(False)
 
+    def initial_pose(self) -> jax.Array:
+        """The joint positions an episode starts from: the model's own (``qpos0``)."""
+        return jnp.asarray(self._brax.sys.init_q)
+
+    def physics_step(self, sys, pipeline_state, action):
+        """``n_frames`` physics steps with the action as the motors' controls."""
+        from brax.mjx import pipeline
+
+        def frame(pipeline_state, _):
+            return pipeline.step(sys, pipeline_state, action), None
+
+        return jax.lax.scan(frame, pipeline_state, (), self.n_frames)[0]
+
     def reward(self, before, after, target, hit) -> jax.Array:
         """The task's reward for one control step that ends with ``hit`` (the target reached)."""
         raise NotImplementedError
 
-    def moving_to_target(self, before, after, target) -> jax.Array:
-        """The original tasks' progress term: 0.1 × the effector's displacement toward the target."""
+    def progress(self, before, after, target) -> jax.Array:
+        """The effector's displacement toward the target over one control step (the original tasks'
+        progress terms weigh it: 0.1 in Fetch and UR5e, 1.5 in Grasp)."""
         position = self.effector_position(after)
         direction = (target - position) / (1e-6 + jnp.linalg.norm(target - position))
-        return 0.1 * jnp.dot(position - self.effector_position(before), direction)
+        return jnp.dot(position - self.effector_position(before), direction)
+
+    def touching(self, physics, geoms: tuple[str, ...], other: str | None = None) -> jax.Array:
+        """1 for each of the named geoms in contact with ``other`` (with anything: None), else 0."""
+        contact = physics.contact
+        model = self._brax.sys.mj_model
+        touching = contact.dist < 0
+        if other is not None:
+            other_id = model.geom(other).id
+            touching = touching & ((contact.geom1 == other_id) | (contact.geom2 == other_id))
+        ids = [model.geom(name).id for name in geoms]
+        return jnp.stack(
+            [jnp.any(touching & ((contact.geom1 == g) | (contact.geom2 == g))) for g in ids]
+        ).astype(jnp.float32)
 
     def step_info(self, state, context) -> dict:
         """``targets_reached``: how many targets this episode has reached so far."""

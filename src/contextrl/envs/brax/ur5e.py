@@ -96,7 +96,7 @@ class Ur5e(ReachingTask):
     }
 
     def reward(self, before, after, target, hit):
-        return self.moving_to_target(before, after, target) + hit
+        return 0.1 * self.progress(before, after, target) + hit
 
     def observe(self, state, context) -> jax.Array:
         physics = state.pipeline_state
