@@ -1,6 +1,6 @@
 """Steps per second of the Brax family, every copy with its own physical system, against brax itself.
 
-    python benchmarks/bench_brax.py [--envs Ant,HalfCheetah] [--reaching Fetch,Ur5e] [--sizes 1,64,256,1024]
+    python benchmarks/bench_brax.py [--envs Ant,HalfCheetah] [--reaching Fetch,Grasp,Ur5e] [--sizes 1,64,256,1024]
 
 Everything is stepped through the project's one stepping path, ``crl.with_contexts(env, contexts)``
 with ``reset_copies``/``step_copies`` (what the agents and the gymnasium vector face run): copy i keeps
@@ -18,7 +18,7 @@ context i of a batch drawn per copy, episodes end and restart (a new context cho
    never recompile: the compiled rollout takes the contexts as an argument and is called again with a
    second, independently drawn batch; the jitted function's cache and XLA's compilation count must not
    grow.
-3. The target-reaching tasks (Fetch, UR5e) the same way, with no brax column (brax has not had them
+3. The target-reaching tasks (Fetch, Grasp, UR5e) the same way, with no brax column (brax has not had them
    since 2023), compiled twice: with XLA's defaults and with ``xla_cpu_use_fusion_emitters`` off for
    that program (``jax.jit``'s ``compiler_options``). XLA:CPU's fusion emitters make MJX's forward
    kinematics of a long serial chain cost exponentially more per level (UR5e's six-link arm).
@@ -62,8 +62,8 @@ def per_copy_contexts(env, n: int, key):
 
 
 def reaching_contexts(env, n: int, key):
-    """``n`` contexts of a target-reaching task around its paper defaults: gravity, friction, torso mass,
-    motor strength and target distance."""
+    """``n`` contexts of a target-reaching task around its paper defaults: gravity, friction, torso mass
+    (where the task has one), motor strength and target distance."""
     features = env.context_space.features
     strength, distance = features["actuator_strength"].default, features["target_distance"].default
     spec = {
@@ -73,7 +73,7 @@ def reaching_contexts(env, n: int, key):
         "actuator_strength": crl.Uniform(0.5 * strength, 1.5 * strength),
         "target_distance": crl.Uniform(0.5 * distance, 1.5 * distance),
     }
-    return crl.sample(env, spec, n, key)
+    return crl.sample(env, {name: spec[name] for name in spec if name in features}, n, key)
 
 
 def contextual_rollout(env, n: int, steps: int, compiler_options=None):

@@ -478,8 +478,9 @@ def results_page(root: str | Path) -> str:
         f"(here `{root}`); a figure not run says so. *holds* / *does not hold*: the 95% interval "
         "decides; *undecided*: it does not at that budget. The specs are in `examples/paper/` "
         "(shipped as `contextrl/paper/`); `--scale small` runs the budget two CPU cores afford, "
-        "stated per figure below. The paper's Figure 1 (CARLFetch) needs the Fetch environment, "
-        "which the library does not have yet.",
+        "stated per figure below. The paper's Figure 1 (CARLFetch at three target distances and "
+        "three ground frictions) is a picture, not an experiment: `contextrl render Fetch --grid "
+        "target_distance=2,6,10 --grid friction=0.05,0.6,1.0` draws it (families/brax.md).",
         "",
     ]
     for figure in FIGURES.values():

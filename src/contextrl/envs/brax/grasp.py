@@ -3,16 +3,22 @@
 The model is written from brax v0.0.x's configuration of the task: a palm (a sphere of radius 1.5)
 moved kinematically, four fingers of three capsule segments (radius 0.5, 2 m long with their caps, 1 kg
 and unit inertia each) that open and close under angle actuators (position servos, gain 300) damped at
-50 N·m·s/rad; the proximal joints turn ±45°, the middle and distal ones curl 0–90°. Only the fingertips
-and the palm touch the object (a capsule of radius 1 and length 2.02), and only the object touches the
-ground; 4 physics steps of 5 ms per action. The palm is moved kinematically, as in the original: the
-last three actions pick a point in x, y ∈ [−10, 10], z ∈ [3.5, 13.5], and each control step the palm
-moves 15 % of the way there (at most 0.3 m), in equal parts over the physics steps. (It hangs on three
-slide joints whose positions and velocities are set before every physics step, and weighs 1,000 kg, so
-that within a step the fingers barely move it: MJX does not carry a mocap body's pose to its children.) Targets are drawn as in the other reaching tasks,
-at a height ``target_height·U``; the object reaching one (within ``target_radius``) pays 5 and moves it.
-Reward, as the original's: the palm moving toward the object, closeness to it, fingertips touching it,
-the object moving toward the target, and the bonus.
+50 N·m·s/rad; the proximal joints turn ±45°, the middle and distal ones curl 0–90°. The object is a
+capsule of radius 1 and length 2.02; 4 physics steps of 5 ms per action.
+
+The palm moves as in the original: the last three actions pick a point in x, y ∈ [−10, 10],
+z ∈ [3.5, 13.5], and each control step the palm moves 15 % of the way there (at most 0.3 m), in equal
+parts over the physics steps. It hangs on three slide joints whose positions and velocities are set
+before every physics step, and weighs 1,000 kg, so that within a step the fingers barely move it (a
+MuJoCo mocap body would be the natural kinematic body, but MJX does not carry its pose to its children).
+
+Contacts, as the original's: the fingertips and the palm touch the object, the object touches the
+floor; here the fingertips touch the floor too (the original let them pass through it), and the claw
+starts open, standing on its fingertips around the object, so a random policy already moves the
+object's and the fingertips' contacts (where friction acts). Targets are drawn as in the other
+reaching tasks, at a height ``target_height·U``; the object reaching one (within ``target_radius``)
+pays 5 and moves it. Reward, as the original's: the palm moving toward the object, closeness to it,
+fingertips touching it, the object moving toward the target, and the bonus.
 """
 
 from __future__ import annotations
@@ -65,6 +71,9 @@ JOINTS = tuple(f"finger{index}_{part}" for index in range(4) for part in PARTS)
 PALM_Q, PALM_QD = slice(7, 10), slice(6, 9)
 TIPS = tuple(f"tip{index}" for index in range(4))
 
+# Collision bits (MuJoCo collides two geoms when one's contype shares a bit with the other's
+# conaffinity): bit 1, the floor with the object and the fingertips; bit 2, the object with the
+# fingertips and the palm. The other finger segments collide with nothing.
 MODEL = f"""
 <mujoco model="grasp">
   <compiler angle="radian"/>
@@ -123,6 +132,10 @@ class Grasp(ReachingTask):
     def feature_fields(cls, backend: str, goal: bool, fluid: bool) -> dict[str, Any]:
         return {
             **super().feature_fields(backend, goal, fluid),
+            "actuator_strength": feature(
+                cls.actuator_strength, 1.0, 10 * cls.actuator_strength, unit="N·m/rad",
+                doc="gain of every finger's angle servo (torque per radian from its set angle)",
+            ),
             "target_height": feature(
                 cls.target_height, 0.0, 50.0, unit="m", affects=("goal", "observation"),
                 doc="targets are drawn up to this high above the floor",
