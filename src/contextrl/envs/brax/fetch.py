@@ -5,7 +5,8 @@ carrying two legs of an upper and a lower segment (boxes of 1 kg, unit inertia);
 ±60° (the spine's two turn about the body's long axis, the legs' about its side axis), each driven by a
 motor of 300 N·m and damped at 35 N·m·s/rad; only the lower legs touch the ground, as capsules of the
 boxes' extent (box–ground contacts made a step about a fifth slower); 4 physics steps of 5 ms per
-action. The reward, as the original's: 0.1·dt·torso height + 0.1 × progress toward the target +
+action, each solved with two Newton iterations (with one, strong motors on undamped joints gave NaN
+within 100 steps). The reward, as the original's: 0.1·dt·torso height + 0.1 × progress toward the target +
 0.1·dt·uprightness + (on reaching it) how squarely the torso faces the target.
 """
 
