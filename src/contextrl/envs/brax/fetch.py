@@ -167,4 +167,3 @@ class Fetch(ReachingTask):
                 self.touching(physics, FEET),
             ]
         )
-

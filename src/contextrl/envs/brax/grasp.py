@@ -234,4 +234,3 @@ class Grasp(ReachingTask):
                 self.touching(physics, TIPS, "object"),
             ]
         )
-

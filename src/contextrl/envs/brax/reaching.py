@@ -6,9 +6,9 @@ through brax's pipeline, with the same per-copy system as the rest of the family
 shared: the paper's features with their absolute defaults, how they reach the system, and the target —
 drawn at ``target_radius + target_distance·U`` from the task's origin at a uniform random angle, counted
 as reached within ``target_radius``, and moved to a fresh draw when reached, as in the original tasks.
-The state keeps the target's two random draws (U and the angle), not its position: the position is
-computed from them and the context whenever it is needed, so the target features are goal features
-that act at once, on every copy, without touching the physics.
+The state keeps the target's random draws (U, the angle, Grasp's height fraction), not its position:
+the position is computed from them and the context whenever it is needed, so the target features are
+goal features that act at once, on every copy, without touching the physics.
 
 Two features of the original engine have no counterpart in MJX and are not offered (``left_out``):
 ``angular_damping`` (a per-body decay of angular velocity) and the joints' anchoring springs. What
@@ -41,8 +41,8 @@ LIMIT_DAMPING = 100.0
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class TargetState:
-    """brax's physics state, the current target's draws (U ∈ [0, 1), angle), and how many targets this
-    episode reached."""
+    """brax's physics state, the current target's draws (U ∈ [0, 1), angle, height fraction), and how
+    many targets this episode reached."""
 
     pipeline_state: Any
     target_draws: jax.Array
@@ -86,7 +86,9 @@ class ReachingTask(BraxEnv):
     target_distance: ClassVar[tuple[float, float, float]]  # default, lower, upper
     target_radius: ClassVar[tuple[float, float, float]]
     target_height: ClassVar[float]  # z of a target (Grasp: the feature's default)
-    torso: ClassVar[str | None] = None  # the body ``torso_mass`` sets (stock 1 kg); None: no feature
+    torso: ClassVar[str | None] = (
+        None  # the body ``torso_mass`` sets (stock 1 kg); None: no feature
+    )
     stochastic_transition = True  # a reached target moves to a fresh random place
 
     brax_name = ""  # not one of brax's tasks
@@ -222,7 +224,6 @@ class ReachingTask(BraxEnv):
         return TargetState(pipeline_state, self.draw_target(key), jnp.asarray(0, jnp.int32))
 
     def transition(self, key, state, action, context):
-        from brax.mjx import pipeline
 
         sys = self.system(context)
         after = self.physics_step(sys, state.pipeline_state, action)
