@@ -148,7 +148,8 @@ def _effects(env: Env, steps: int):
 def check_feature_effects(
     env: Env, key, *, num_bases: int = 4, num_keys: int = 4, steps: int = 200
 ) -> dict[str, dict[str, bool]]:
-    """Per feature, which effects were observed; raises AssertionError on a missing or undeclared one.
+    """Per feature, which effects were observed; raises AssertionError on a missing or undeclared one,
+    or on a value inside the feature's bounds that gives non-finite states, rewards or observations.
 
     Each feature is moved to its bounds and midpoints, from the default context and from random ones, and
     compared with the unchanged context along the same random trajectories.

@@ -30,8 +30,9 @@ from contextrl.context.features import feature
 from contextrl.core.spaces import Box
 from contextrl.envs.brax.base import BraxEnv, _quiet_brax
 
-# Below this MJX's pyramidal friction cones turn singular: Fetch gave NaN at 0 and 0.005 and flew off
-# at 0.0001, none at 0.01 (100 random steps, 4 runs each); the paper's ice is 0.05.
+# Toward 0 MJX's pyramidal friction cones turn singular: at its default context Fetch gave NaN at 0
+# and 0.005 and flew off at 0.0001 (100 random steps, 4 runs each); with the checker's random contexts
+# 0.02 gave NaN too. The paper's ice is 0.05.
 MIN_FRICTION = 0.05
 # The joint limits' damping (direct form, the constraint's velocity gain): held fixed, so that
 # ``joint_stiffness`` changes only the stiffness of the limit.
@@ -63,13 +64,11 @@ class Physics:
 
 @functools.cache
 def load_physics(model_xml: str, n_frames: int) -> Physics:
-    """The system of one task's MJCF, loaded once per process (compiled by MuJoCo as written: brax's
-    ``mjcf.loads`` would fuse a jointless body, such as Grasp's mocap palm, into its parent)."""
+    """The system of one task's MJCF, loaded once per process."""
     with _quiet_brax():
-        import mujoco
         from brax.io import mjcf
 
-        return Physics(mjcf.load_model(mujoco.MjModel.from_xml_string(model_xml)), n_frames)
+        return Physics(mjcf.loads(model_xml), n_frames)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,9 +85,8 @@ class ReachingTask(BraxEnv):
     target_distance: ClassVar[tuple[float, float, float]]  # default, lower, upper
     target_radius: ClassVar[tuple[float, float, float]]
     target_height: ClassVar[float]  # z of a target (Grasp: the feature's default)
-    torso: ClassVar[str | None] = (
-        None  # the body ``torso_mass`` sets (stock 1 kg); None: no feature
-    )
+    # the body ``torso_mass`` sets (stock 1 kg); None: the task has no torso_mass
+    torso: ClassVar[str | None] = None
     stochastic_transition = True  # a reached target moves to a fresh random place
 
     brax_name = ""  # not one of brax's tasks
@@ -224,7 +222,6 @@ class ReachingTask(BraxEnv):
         return TargetState(pipeline_state, self.draw_target(key), jnp.asarray(0, jnp.int32))
 
     def transition(self, key, state, action, context):
-
         sys = self.system(context)
         after = self.physics_step(sys, state.pipeline_state, action)
         target = self.target(state, context)
