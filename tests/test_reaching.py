@@ -158,7 +158,7 @@ def _grasp_and_carry(env):
 
 def test_the_claw_picks_up_the_object_and_carries_it_to_a_target():
     """Grasp's claw closes on the object, lifts it and carries it; a target placed on that path is
-    reached (the object within ``target_radius``) and counted. With motors of 1 N·m instead of 300
+    reached (the object within ``target_radius``) and counted. With servos of gain 1 instead of 300
     the claw cannot close and the object stays on the floor."""
     env = family.Grasp()
     episode = _grasp_and_carry(env)

@@ -1,5 +1,6 @@
 """The public checker on the paper's target-reaching tasks Fetch and UR5e (Grasp's: test_reaching.py):
-every feature acts, none acts undeclared (a file of its own, so the suite's workers share the reaching tests)."""
+every feature acts, none acts undeclared (a file of its own, so the suite's workers share the reaching
+tests)."""
 
 import importlib.util
 
@@ -17,5 +18,6 @@ from contextrl.testing import check_env  # noqa: E402
 def test_public_checker_passes_so_every_feature_acts(name, max_steps):
     """The full checker; each feature is probed in 64 (context pair, key) runs of ``max_steps`` random
     steps. The fewest runs showing a declared effect, measured under the suite's flags: Fetch 36 of 64
-    (joint_stiffness: a joint must reach its limit); UR5e 12 of 64 (friction: the arm must fall onto the floor and slide)."""
+    (joint_stiffness: a joint must reach its limit); UR5e 12 of 64 (friction: the arm must fall onto
+    the floor and slide)."""
     check_env(getattr(family, name)(max_steps=max_steps), num_contexts=4, steps=9)
