@@ -168,7 +168,7 @@ class Grasp(ReachingTask):
         three pick, in equal parts over the physics steps, at the matching velocity."""
         from brax.mjx import pipeline
 
-        ranges = jnp.asarray(self._brax.sys.jnt_range)[self._finger_joints]
+        ranges = jnp.asarray(self._brax.sys.jnt_range)[self._fingers[0]]
         angles = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * (action[:12] + 1) / 2
         goal = PALM_LOW + PALM_EXTENT * (action[12:] + 1) / 2
         palm = self.palm_position(pipeline_state)
@@ -187,20 +187,21 @@ class Grasp(ReachingTask):
     def initial_pose(self) -> jax.Array:
         """The object at rest and the claw open, standing on its fingertips around it: the proximal
         joints turned fully down (45°), the middle and distal ones straight."""
-        joints = self._finger_joints
+        joints, positions, _ = self._fingers
         ranges = np.asarray(self._brax.sys.jnt_range)[joints]
         angles = np.where(np.arange(len(joints)) % 3 == 0, ranges[:, 1], ranges[:, 0])
-        adresses = np.asarray(self._brax.sys.jnt_qposadr)[joints]
-        return jnp.asarray(self._brax.sys.init_q).at[adresses].set(angles)
+        return jnp.asarray(self._brax.sys.init_q).at[positions].set(angles)
 
     def palm_position(self, pipeline_state) -> jax.Array:
         """Where the palm is (its slide joints' positions are its world coordinates)."""
         return pipeline_state.q[PALM_Q]
 
     @property
-    def _finger_joints(self) -> np.ndarray:
+    def _fingers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The finger joints' ids and their addresses in q and in qd, in ``JOINTS`` order."""
         model = self._brax.sys.mj_model
-        return np.array([model.joint(name).id for name in JOINTS])
+        joints = np.array([model.joint(name).id for name in JOINTS])
+        return joints, model.jnt_qposadr[joints], model.jnt_dofadr[joints]
 
     def reward(self, before, after, target, hit):
         palm_before, palm = self.palm_position(before), self.palm_position(after)
@@ -218,7 +219,7 @@ class Grasp(ReachingTask):
         held = self.effector_position(physics)
         target = self.target(state, context)
         link = self._link(self.effector)
-        joints = self._finger_joints
+        _, positions, velocities = self._fingers
         return jnp.concatenate(
             [
                 palm,
@@ -229,8 +230,8 @@ class Grasp(ReachingTask):
                 target - palm,
                 physics.xd.vel[link],
                 physics.xd.ang[link],
-                physics.q[jnp.asarray(self._brax.sys.jnt_qposadr)[joints]],
-                physics.qd[jnp.asarray(self._brax.sys.jnt_dofadr)[joints]],
+                physics.q[positions],
+                physics.qd[velocities],
                 self.touching(physics, TIPS, "object"),
             ]
         )
