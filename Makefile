@@ -36,7 +36,7 @@ system-deps:
 # Both cores, one test file per worker: a file's module fixtures (compiled programs, the PB2 runs, the
 # CLI's trained run) are built once. (pytest-xdist 3.8's loadgroup does not group tests under pytest 9.)
 test: system-deps install
-	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25
+	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=25
 
 run: install
 	$(VENV)/bin/contextrl run quickstart

@@ -1,6 +1,7 @@
 """Settings for every test process (each xdist worker and the subprocesses tests start), the ``egl``
-mark (MuJoCo's headless rendering tests skip, saying why, where EGL is missing), and a fixture that
-stops a local Ray at the end of the file that started it."""
+mark (MuJoCo's headless rendering tests skip, saying why, where EGL is missing), the order in which
+the two workers take the test files, and a fixture that stops a local Ray at the end of the file that
+started it."""
 
 import ctypes.util
 import os
@@ -50,11 +51,34 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "egl: renders with MuJoCo headless, which needs EGL")
 
 
+# The files that take longest (seconds on a fresh clone, both workers busy), handed out first: `make
+# test` keeps this order (--no-loadscope-reorder) so that the short files fill in at the end and both
+# workers finish together; xdist's own order (most tests first) left a worker running a Brax file alone.
+LONGEST_FILES = (
+    "test_reaching_learning.py",  # ~150: PPO on Fetch and UR5e
+    "test_experiments_hpo.py",  # ~130: two PB2 runs on Ray, then the host-training tests
+    "test_reaching.py",  # ~80
+    "test_reaching_checker.py",  # ~80
+    "test_experiments_matrix.py",  # ~110: three PB2 runs (not beside the file above's)
+    "test_brax_large.py",  # ~80
+    "test_brax_agents.py",  # ~75
+    "test_paper.py",  # ~75
+    "test_agents_sac.py",  # ~70
+    "test_workflow_cli.py",  # ~65
+    "test_platformer.py",  # ~60
+    "test_brax.py",  # ~60
+    "test_one_path.py",  # ~55
+    "test_agents_dqn.py",  # ~55
+)
+
+
 def pytest_collection_modifyitems(items):
     for item in items:
         if EGL_MISSING and item.get_closest_marker("egl"):
             reason = "needs EGL for MuJoCo's headless rendering (libegl1 libgl1-mesa-dri: make system-deps)"
             item.add_marker(pytest.mark.skip(reason=reason))
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep theirs
 
 
 @pytest.fixture(scope="module")

@@ -27,8 +27,13 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 MEASURED_NUMERICS = {"xla_backend_optimization_level": 3, "xla_cpu_use_fusion_emitters": True}
 
 
-def _jit(function):
-    return jax.jit(function, compiler_options=MEASURED_NUMERICS)
+# UR5e's six-link chain runs 30-40 × slower with the fusion emitters (docs/troubleshooting.md), so its
+# learning test pins the older emitters, at LLVM's default optimisation.
+OLDER_EMITTERS = {**MEASURED_NUMERICS, "xla_cpu_use_fusion_emitters": False}
+
+
+def _jit(function, numerics=MEASURED_NUMERICS):
+    return jax.jit(function, compiler_options=numerics)
 
 
 def _keys(seeds, offset: int = 0):
@@ -164,27 +169,6 @@ def platformer_levels(seeds) -> dict[str, np.ndarray]:
     }
 
 
-def _brax_curve(module, config, seeds) -> np.ndarray:
-    from contextrl.envs import brax as family
-
-    env = family.InvertedPendulum(max_steps=200)
-    train = module.make_train(config, env, env.default_context())
-    return np.asarray(_jit(jax.vmap(train))(_keys(seeds)).metrics["episode_return"])
-
-
-def brax_ppo_pendulum(seeds) -> dict[str, np.ndarray]:
-    """PPO on Brax's InvertedPendulum (200-step episodes), 8,192 steps (8 copies × 64 steps × 16
-    updates): the mean episode return of the first 2 and of the last 4 updates."""
-    config = ppo.PPOConfig(
-        total_timesteps=8192, num_envs=8, num_steps=64, learning_rate=3e-3, hidden_sizes=(32, 32)
-    )
-    curve = _brax_curve(ppo, config, seeds)
-    return {
-        "first_updates": np.nanmean(curve[:, :2], axis=1),
-        "last_updates": np.nanmean(curve[:, -4:], axis=1),
-    }
-
-
 def brax_sac_pendulum(seeds) -> dict[str, np.ndarray]:
     """SAC on Brax's InvertedPendulum, 3,000 steps (2 copies, 500 random warm-up transitions, then an
     update per step): the mean episode return of the first and the last of six logging rows."""
@@ -197,7 +181,11 @@ def brax_sac_pendulum(seeds) -> dict[str, np.ndarray]:
         batch_size=128,
         log_every=500,
     )
-    curve = _brax_curve(sac, config, seeds)
+    from contextrl.envs import brax as family
+
+    env = family.InvertedPendulum(max_steps=200)
+    train = sac.make_train(config, env, env.default_context())
+    curve = np.asarray(_jit(jax.vmap(train))(_keys(seeds)).metrics["episode_return"])
     return {"first_rows": curve[:, 0], "last_rows": curve[:, -1]}
 
 
@@ -237,6 +225,122 @@ def rna_short_targets(seeds) -> dict[str, np.ndarray]:
     }
 
 
+REACH_EPISODES = 32
+
+
+def _reach_statistics(env, context, act, params, seeds, numerics) -> dict[str, np.ndarray]:
+    """Per seed, over REACH_EPISODES evaluation episodes through the core's reset and step (keys
+    10,000 + seed): the fraction of episodes that reached a target, the same among those whose first
+    target lay ahead of the start pose (x > 0) and among the others, and the mean return.
+    ``act(params, obs, ctx, key)`` picks the actions."""
+
+    def episode(params, key):
+        reset_key, loop_key = jax.random.split(key)
+        state, timestep = env.reset(reset_key, context)
+        ahead = jnp.cos(state.physics.target_draws[1]) > 0
+
+        def step(carry, key):
+            state, obs, total = carry
+            action_key, step_key = jax.random.split(key)
+            action = act(params, obs, context, action_key)
+            state, timestep = env.step(step_key, state, action, context)
+            return (state, timestep.obs, total + timestep.reward), timestep.info["targets_reached"]
+
+        carry = (state, timestep.obs, jnp.zeros((), jnp.float32))
+        keys = jax.random.split(loop_key, env.max_steps)
+        (_, _, total), reached = jax.lax.scan(step, carry, keys)
+        return ahead, reached[-1] > 0, total  # the last step's count is the whole episode's
+
+    def per_seed(params, key):
+        keys = jax.random.split(key, REACH_EPISODES)
+        return jax.vmap(episode, in_axes=(None, 0))(params, keys)
+
+    ahead, reached, total = (
+        np.asarray(x) for x in _jit(jax.vmap(per_seed), numerics)(params, _keys(seeds, 10_000))
+    )
+    return {
+        "reached": reached.mean(axis=1),
+        "reached_ahead": (reached & ahead).sum(axis=1) / ahead.sum(axis=1),
+        "reached_behind": (reached & ~ahead).sum(axis=1) / (~ahead).sum(axis=1),
+        "return": total.mean(axis=1),
+    }
+
+
+def _reaching_task(name: str):
+    """The task, its context, its PPO settings and numerics, as the learning tests run them."""
+    from contextrl.envs import brax as family
+
+    common = dict(num_envs=32, num_steps=32, learning_rate=1e-3, hidden_sizes=(64, 64))
+    if name == "Fetch":  # targets 2.0–2.1 m away, reached within 2 m: a step toward them
+        env = family.Fetch(max_steps=100)
+        context = env.context(target_distance=0.1)
+        return env, context, ppo.PPOConfig(total_timesteps=50_000, **common), MEASURED_NUMERICS
+    if name == "Grasp":  # the default context
+        env = family.Grasp(max_steps=100)
+        config = ppo.PPOConfig(total_timesteps=150_000, **common)
+        return env, env.default_context(), config, MEASURED_NUMERICS
+    env = family.Ur5e(max_steps=100)  # targets 0.3–0.4 m from the base, reached within 0.3 m
+    context = env.context(target_radius=0.3, target_distance=0.1)
+    config = ppo.PPOConfig(total_timesteps=100_000, ent_coef=0.0, log_std_init=-0.5, **common)
+    return env, context, config, OLDER_EMITTERS
+
+
+def _ppo_reach(name: str, seeds, evaluated: bool = True) -> dict[str, np.ndarray]:
+    """The training curve's first 5 and last 10 updates' mean episode return, and (``evaluated``)
+    :func:`_reach_statistics` of the trained deterministic policy."""
+    env, context, config, numerics = _reaching_task(name)
+    result = _jit(jax.vmap(ppo.make_train(config, env, context)), numerics)(_keys(seeds))
+    curve = np.asarray(result.metrics["episode_return"])
+    first, last = np.nanmean(curve[:, :5], axis=1), np.nanmean(curve[:, -10:], axis=1)
+    statistics = {"first_updates": first, "last_updates": last, "rise": last - first}
+    if evaluated:
+        policy = ppo.make_policy(config, env, context)
+        statistics |= _reach_statistics(env, context, policy, result.params, seeds, numerics)
+    return statistics
+
+
+def _random_reach(name: str, seeds) -> dict[str, np.ndarray]:
+    env, context, _, numerics = _reaching_task(name)
+
+    def act(params, obs, ctx, key):
+        return env.action_space.sample(key)
+
+    return _reach_statistics(env, context, act, jnp.zeros(len(seeds)), seeds, numerics)
+
+
+def ppo_fetch(seeds) -> dict[str, np.ndarray]:
+    """PPO on Fetch at target distance 0.1 (100-step episodes), 50k steps (32 copies × 32 steps, lr
+    1e-3, 64×64): reach rates and returns of 32 evaluation episodes, the training curve's ends."""
+    return _ppo_reach("Fetch", seeds)
+
+
+def random_fetch(seeds) -> dict[str, np.ndarray]:
+    """Uniform random actions on :func:`ppo_fetch`'s evaluation episodes (the same keys)."""
+    return _random_reach("Fetch", seeds)
+
+
+def ppo_ur5e(seeds) -> dict[str, np.ndarray]:
+    """PPO on UR5e with target radius 0.3 and distance 0.1 (100-step episodes), 100k steps (32 copies
+    × 32 steps, lr 1e-3, 64×64, no entropy bonus, initial log std −0.5): the training curve's ends."""
+    return _ppo_reach("Ur5e", seeds, evaluated=False)
+
+
+def ppo_ur5e_evaluated(seeds) -> dict[str, np.ndarray]:
+    """:func:`ppo_ur5e` and the trained policy's reach rates, as :func:`ppo_fetch`'s."""
+    return _ppo_reach("Ur5e", seeds)
+
+
+def random_ur5e(seeds) -> dict[str, np.ndarray]:
+    """Uniform random actions on :func:`ppo_ur5e`'s evaluation episodes (the same keys)."""
+    return _random_reach("Ur5e", seeds)
+
+
+def ppo_grasp(seeds) -> dict[str, np.ndarray]:
+    """PPO on Grasp at its default context (100-step episodes), 150k steps, otherwise as
+    :func:`ppo_fetch`: the training curve's ends (no test: a budget the suite cannot pay)."""
+    return _ppo_reach("Grasp", seeds, evaluated=False)
+
+
 CASES = {
     "ppo_cartpole": ppo_cartpole,
     "dqn_cartpole": dqn_cartpole,
@@ -245,7 +349,12 @@ CASES = {
     "purejaxrl_cartpole": purejaxrl_cartpole,
     "sb3_cartpole": sb3_cartpole,
     "platformer_levels": platformer_levels,
-    "brax_ppo_pendulum": brax_ppo_pendulum,
     "brax_sac_pendulum": brax_sac_pendulum,
     "rna_short_targets": rna_short_targets,
+    "ppo_fetch": ppo_fetch,
+    "random_fetch": random_fetch,
+    "ppo_ur5e": ppo_ur5e,
+    "ppo_ur5e_evaluated": ppo_ur5e_evaluated,
+    "random_ur5e": random_ur5e,
+    "ppo_grasp": ppo_grasp,
 }

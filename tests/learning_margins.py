@@ -9,11 +9,11 @@ Stable-Baselines3's run does not go through XLA; its second numerics is torch wi
 (``ATEN_CPU_CAPABILITY=default``). The host-path RNA run compiles its networks inside the library, so
 it is also measured as the suite compiles it (``XLA_FLAGS="--xla_cpu_use_fusion_emitters=false
 --xla_backend_optimization_level=0"``, tests/conftest.py); the JAX cases pin XLA's default numerics
-whatever the flags
-(``learning.MEASURED_NUMERICS``).
+whatever the flags (``learning.MEASURED_NUMERICS``; UR5e's the older emitters, ``OLDER_EMITTERS``).
 
-It prints, per case and statistic, the sorted per-seed values, their minimum, median and maximum;
-the tests' docstrings quote these figures. ``--first`` moves the seed range (seeds first .. first+n-1).
+It prints, per case and statistic, the per-seed values sorted and in seed order, their minimum, median
+and maximum; the tests' docstrings quote these figures. ``--first`` moves the seed range (seeds first
+.. first+n-1).
 """
 
 from __future__ import annotations
@@ -54,7 +54,8 @@ def main(argv=None) -> None:
             values = np.asarray(values, float)
             print(
                 f"  {stat}: min {values.min():.4g}  median {np.median(values):.4g}  "
-                f"max {values.max():.4g}  sorted {np.round(np.sort(values), 3).tolist()}"
+                f"max {values.max():.4g}  sorted {np.round(np.sort(values), 3).tolist()}  "
+                f"by seed {np.round(values, 3).tolist()}"
             )
         sys.stdout.flush()
 
