@@ -55,11 +55,11 @@ def pytest_configure(config):
 # test` keeps this order (--no-loadscope-reorder) so that the short files fill in at the end and both
 # workers finish together; xdist's own order (most tests first) left a worker running a Brax file alone.
 LONGEST_FILES = (
-    "test_reaching_learning.py",  # ~150: PPO on Fetch and UR5e
+    "test_reaching_learning.py",  # ~130: PPO on Fetch and UR5e
     "test_experiments_hpo.py",  # ~130: two PB2 runs on Ray, then the host-training tests
     "test_reaching.py",  # ~80
     "test_reaching_checker.py",  # ~80
-    "test_experiments_matrix.py",  # ~110: three PB2 runs (not beside the file above's)
+    "test_experiments_matrix.py",  # ~110, with three PB2 runs: not started beside the hpo file's
     "test_brax_large.py",  # ~80
     "test_brax_agents.py",  # ~75
     "test_paper.py",  # ~75

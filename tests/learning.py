@@ -27,8 +27,8 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 MEASURED_NUMERICS = {"xla_backend_optimization_level": 3, "xla_cpu_use_fusion_emitters": True}
 
 
-# UR5e's six-link chain runs 30-40 × slower with the fusion emitters (docs/troubleshooting.md), so its
-# learning test pins the older emitters, at LLVM's default optimisation.
+# UR5e's six-link chain steps up to 50 × slower with the fusion emitters (docs/benchmarks.md, docs/
+# troubleshooting.md), so its learning test pins the older emitters, at LLVM's default optimisation.
 OLDER_EMITTERS = {**MEASURED_NUMERICS, "xla_cpu_use_fusion_emitters": False}
 
 

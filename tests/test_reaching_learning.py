@@ -37,7 +37,7 @@ def test_ppo_fetch_reaches_the_targets_ahead_that_its_reward_pays_for():
 
 def test_ppo_ur5e_reaches_targets_a_random_arm_never_reaches():
     """PPO, 100k steps, seeds 0–1 in one vmapped call, on UR5e with target radius 0.3 and distance 0.1
-    (targets 0.3–0.4 m from the base, 0.5 m up; the wrist starts about 0.6 m from them): the mean
+    (targets 0.3–0.4 m from the base, 0.5 m up; the wrist starts 0.61–0.78 m from them): the mean
     training return of the first 5 and the last 10 updates. A reached target pays 1, so the return is
     about the targets reached per episode; a random arm reached none in 768 evaluation episodes.
 
@@ -45,8 +45,9 @@ def test_ppo_ur5e_reaches_targets_a_random_arm_never_reaches():
     0–15: first −0.005–0.003, last 0.153–1.229; fast math, seeds 100–107: first −0.006–0.002, last
     −0.030–1.064 (seed 100 had not yet found a target). Some seed can take longer than 100k steps to
     find its first target, so the test asserts the two seeds' mean: the lowest two of all 24 measured
-    average 0.062, three times the threshold 0.02 (which a random arm, never reaching, cannot pass). The trained deterministic policy then reaches a
-    target in 0–91 % of 32 evaluation episodes (median 42 % and 48 %); random actions in none.
+    average 0.062, three times the threshold 0.02 (which a random arm, never reaching, cannot pass).
+    The trained deterministic policy then reaches a target in 0–91 % of 32 evaluation episodes
+    (median 42 % and 48 %); random actions in none.
     """
     statistics = learning.ppo_ur5e(range(2))
     first, last = statistics["first_updates"], statistics["last_updates"]
