@@ -53,7 +53,7 @@ def pytest_configure(config):
 
 # The files that take longest (seconds on a fresh clone, both workers busy), handed out first: `make
 # test` keeps this order (--no-loadscope-reorder) so that the short files fill in at the end and both
-# workers finish together; xdist's own order (most tests first) left a worker running a Brax file alone.
+# workers finish together; xdist's own order (most tests first) hands out files of few long tests last.
 LONGEST_FILES = (
     "test_reaching_learning.py",  # ~130: PPO on Fetch and UR5e
     "test_experiments_hpo.py",  # ~130: two PB2 runs on Ray, then the host-training tests
