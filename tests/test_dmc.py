@@ -354,6 +354,11 @@ def test_bad_input_is_refused_clearly_and_leaves_the_environment_usable(built):
         )
     with pytest.raises(ContextError, match=r"gravity.*outside its bounds"):
         env.context(gravity=-1.0)
+    # a feature of the original environment that cannot act here: refused with the reason
+    with pytest.raises(
+        ContextError, match="'joint_stiffness' is left out of DmcWalkerContext: every"
+    ):
+        dmc.DmcWalker.context_type.space.make(joint_stiffness=2.0)
     with pytest.raises(ContextError, match="one value per episode"):
         env.reset_physics(
             env.context_space.stack([env.default_context()] * 2), np.random.default_rng(0)

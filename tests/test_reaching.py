@@ -18,6 +18,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import contextrl as crl  # noqa: E402
+from contextrl import ContextError  # noqa: E402
 from contextrl.cli import main  # noqa: E402
 from contextrl.core.env import EnvState  # noqa: E402
 from contextrl.envs import brax as family  # noqa: E402
@@ -220,3 +221,8 @@ def test_registered_under_carl_names_and_gymnasium_ids_rendered_and_described(ca
     assert main(["describe", "Ur5e"]) == 0
     out = capsys.readouterr().out
     assert "Not offered" in out and "angular_damping" in out and "joint_stiffness:" in out
+    # a context naming one is refused with the same reason, on the gymnasium face too
+    with pytest.raises(ContextError, match="'angular_damping' is left out of Ur5eContext: MJX"):
+        ur5e.context(angular_damping=-0.05)
+    with pytest.raises(ContextError, match="'joint_stiffness' is left out of Ur5eContext"):
+        gymnasium.make(gym_id("Ur5e"), contexts={"joint_stiffness": 40000.0})

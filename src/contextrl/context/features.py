@@ -228,7 +228,7 @@ def context_type(cls):
         data_cls, data_fields=[f.name for f in features], meta_fields=[]
     )
     rules = tuple(getattr(cls, "coherence", ()))
-    data_cls.space = ContextSpace(data_cls, tuple(features), rules)
+    data_cls.space = ContextSpace(data_cls, tuple(features), rules, getattr(cls, "left_out", {}))
     # A declaration bug, caught at import; numpy values, so that importing contextrl starts no JAX
     # backend and XLA_FLAGS set afterwards (contextrl.xla_flags) still take effect.
     defaults = data_cls(**{f.name: np.asarray(f.default, f.dtype) for f in features})
@@ -240,10 +240,16 @@ class ContextSpace:
     """Everything known about the contexts of one environment: names, bounds, validation, conversion."""
 
     def __init__(
-        self, context_class: type, features: tuple[Feature, ...], rules: tuple[Coherence, ...] = ()
+        self,
+        context_class: type,
+        features: tuple[Feature, ...],
+        rules: tuple[Coherence, ...] = (),
+        left_out: dict[str, str] | None = None,
     ):
         self.context_class = context_class
         self.rules = rules
+        # features of the original environment that cannot act here, each with why: named in errors
+        self.left_out: dict[str, str] = dict(left_out or {})
         for rule in rules:
             for name in rule.features:
                 if name not in {f.name for f in features}:
@@ -267,6 +273,11 @@ class ContextSpace:
         if name in self._aliases:
             return self._aliases[name]
         aliases = f" (aliases: {sorted(self._aliases)})" if self._aliases else ""
+        if name in self.left_out:
+            raise ContextError(
+                f"context feature {name!r} is left out of {self.context_class.__name__}: "
+                f"{self.left_out[name]}; valid features: {list(self.names)}{aliases}"
+            )
         raise ContextError(
             f"unknown context feature {name!r} for {self.context_class.__name__}; "
             f"valid features: {list(self.names)}{aliases}"

@@ -68,8 +68,15 @@ class ContextHelpers:
     """What JAX and host environments offer alike about their context (one copy, mixed into both)."""
 
     context_type: ClassVar[type]
-    # Features the original environment had that cannot act here, each with why (``contextrl describe``).
+    # Features the original environment had that cannot act here, each with why (``contextrl describe``,
+    # and the error for a context that names one).
     left_out: ClassVar[dict[str, str]] = {}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        declared = cls.__dict__.get("context_type")
+        if isinstance(declared, type) and hasattr(declared, "space"):  # one class per environment
+            declared.space.left_out.update(cls.left_out)
 
     @property
     def name(self) -> str:

@@ -449,6 +449,7 @@ def context_class(env_class: type, backend: str, goal: bool, fluid: bool) -> typ
         + (", goal variant)." if goal else ")."),
         "__module__": __name__,
         "__qualname__": name,
+        "left_out": env_class.left_out,
         **fields,
     }
     cls = context_type(type(name, (ContextBase,), namespace))
