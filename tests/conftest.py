@@ -59,16 +59,27 @@ LONGEST_FILES = (
     "test_experiments_hpo.py",  # ~130: two PB2 runs on Ray, then the host-training tests
     "test_reaching.py",  # ~80
     "test_reaching_checker.py",  # ~80
-    "test_experiments_matrix.py",  # ~110, with three PB2 runs: not started beside the hpo file's
-    "test_brax_large.py",  # ~80
-    "test_brax_agents.py",  # ~75
+    "test_workflow_cli.py",  # ~110
+    "test_experiments_matrix.py",  # ~100, with two PB2 runs: not started beside the hpo file's
+    "test_brax_large.py",  # ~85
+    "test_agents_sac.py",  # ~75
     "test_paper.py",  # ~75
-    "test_agents_sac.py",  # ~70
-    "test_workflow_cli.py",  # ~65
+    "test_brax_agents.py",  # ~60
+    "test_agents_dqn.py",  # ~60
     "test_platformer.py",  # ~60
     "test_brax.py",  # ~60
     "test_one_path.py",  # ~55
-    "test_agents_dqn.py",  # ~55
+    "test_experiments_agents.py",  # ~45
+    "test_agents_ppo.py",  # ~38
+    "test_platformer_learning.py",  # ~36
+    "test_experiments_runs.py",  # ~30
+    "test_envs.py",  # ~30
+    "test_experiments_registry.py",  # ~27
+    "test_sb3.py",  # ~25
+    "test_docs.py",  # ~22
+    "test_face_gymnax.py",  # ~21
+    "test_vehicle_racing.py",  # ~18
+    "test_gymnasium.py",  # ~17
 )
 
 
