@@ -20,7 +20,14 @@ from contextrl.agents import registered_agents
 from contextrl.experiments.analyze import learning_verdict
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.executors import EXECUTORS, connect
-from contextrl.experiments.paper import FIGURES, SCALES, figure_rows, results_page, run_figure
+from contextrl.experiments.paper import (
+    FIGURES,
+    PAPER_RUNS,
+    SCALES,
+    figure_rows,
+    results_page,
+    run_figure,
+)
 from contextrl.experiments.planning import describe_plan
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.runner import prepare, report, resume
@@ -497,7 +504,12 @@ def paper_command(args: argparse.Namespace) -> int:
             "(contextrl paper list says what each is)"
         )
     verdict, path = run_figure(
-        args.figure, args.scale, root=args.runs, executor=args.executor, progress=not args.quiet
+        args.figure,
+        args.scale,
+        root=args.runs,
+        executor=args.executor,
+        batch_size=args.batch_size,
+        progress=not args.quiet,
     )
     print(f"{args.figure} ({args.scale} budget): the claim {verdict.word}. {verdict.evidence}.")
     print(f"report: {path}")
@@ -523,11 +535,16 @@ def add_paper(subparsers) -> None:
     )
     parser.add_argument(
         "--runs",
-        default="runs/paper",
-        help="folder of the figures' runs (runs/paper): run writes, list and page read",
+        default=PAPER_RUNS,
+        help=f"folder of the figures' runs ({PAPER_RUNS}): run writes, list and page read",
     )
     parser.add_argument("--out", default="docs/paper.md", help="with page: the file (- prints)")
     parser.add_argument("--executor", choices=list(EXECUTORS), default="local")
+    parser.add_argument(
+        "--batch-size",
+        type=count,
+        help="with run: trials trained in one vmapped call (the spec's; a GPU takes them all)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(handler=paper_command)
 

@@ -4,18 +4,22 @@ Each figure's spec ships in ``contextrl/paper/<figure>.yaml`` (a figure of two r
 the context hidden and visible, has one file per part), its header stating the paper's section and
 claim. A figure here adds the check that decides the claim from the finished runs, with the interval
 that decides it, and a smaller budget for two CPU cores. Runs go to ``<root>/<figure>-<scale>/<part>``,
-so the results page (:func:`results_page`) is regenerated from the run folders at any time.
+so the results page (:func:`results_page`) is regenerated from the run folders at any time. The
+project keeps its own runs' records in ``results/paper`` (their checkpoints and figures left out), so
+``docs/paper.md`` is regenerated from the repository alone.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
+import os
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+import jax
 import numpy as np
 
 from contextrl.agents import ConfigError
@@ -35,6 +39,7 @@ from contextrl.experiments.train_test import REGIONS
 
 SPEC_FOLDER = Path(__file__).resolve().parents[1] / "paper"
 SCALES = ("paper", "small", "tiny")
+PAPER_RUNS = "results/paper"
 # A feature is brittle when some magnitude costs the default agent more than this fraction of what it
 # gained over a random policy at the default context, harmless when no magnitude does.
 BRITTLE_FRACTION = 0.25
@@ -364,17 +369,26 @@ def wall_seconds(run: RunDir) -> float:
     return float(run.manifest().get("paper_wall_seconds", sum(run.timings().values())))
 
 
+def machine() -> str:
+    """What trained, for the wall times the page states: JAX's accelerator, else the CPU cores."""
+    device = jax.devices()[0]
+    cores = f"{os.cpu_count()} CPU cores"
+    return cores if device.platform == "cpu" else f"one {device.device_kind} and {cores}"
+
+
 def run_figure(
     name: str,
     scale: str = "small",
     *,
-    root: str | Path = "runs/paper",
+    root: str | Path = PAPER_RUNS,
     executor: str = "local",
     address: str | None = None,
+    batch_size: int | None = None,
     progress: bool = True,
 ) -> tuple[Verdict, Path]:
     """Run (or finish) every part of a figure at ``scale``, then write the figure's report
-    (``paper.html``: the claim, the verdict and the parts' figures); returns the verdict and it."""
+    (``paper.html``: the claim, the verdict and the parts' figures); returns the verdict and it.
+    ``batch_size`` sets how many trials a new part trains in one vmapped call (a GPU takes all)."""
     figure = FIGURES[name]
     folder = figure_folder(root, name, scale)
     for part in figure.files():
@@ -384,12 +398,15 @@ def run_figure(
             run, _ = resume(path, executor=executor, address=address, progress=progress)
         else:
             data = spec_data(figure, part, scale)
+            if batch_size is not None:
+                data["batch_size"] = batch_size
             run, _ = run_experiment(
                 data, out=path, executor=executor, address=address, progress=progress
             )
         spent = time.perf_counter() - start
         run.update_manifest(
-            paper_wall_seconds=run.manifest().get("paper_wall_seconds", 0.0) + spent
+            paper_wall_seconds=run.manifest().get("paper_wall_seconds", 0.0) + spent,
+            paper_machine=machine(),
         )
     runs = finished_runs(figure, root, scale)
     if runs is None:
@@ -421,28 +438,46 @@ def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], 
     return render(f"contextrl paper: {figure.name} ({scale})", sections, {"scale": scale})
 
 
+def _machines(runs) -> str:
+    """Where ``runs`` trained, as their manifests say: the machine and JAX's version."""
+    return " and ".join(
+        sorted(
+            {
+                f"{m['paper_machine']} (JAX {m['versions']['jax']})"
+                for m in (r.manifest() for r in runs)
+            }
+        )
+    )
+
+
 def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
-    """Wall time of ``figure`` at ``scale`` here: measured when it ran under ``root``, else
-    extrapolated from the seconds per training step of the finished paper runs with the same
-    environment and agent, else "not measured"."""
+    """Wall time of ``figure`` at ``scale`` and where: measured when it ran under ``root``, else
+    extrapolated from the seconds per training step of the runs at the same scale with the same
+    environment and agent whose ``contextrl paper run`` ended (the same kind of machine), else "not
+    measured"."""
     runs = finished_runs(figure, root, scale)
     if runs is not None:
-        return duration(sum(wall_seconds(r) for r in runs.values()))
+        return (
+            f"{duration(sum(wall_seconds(r) for r in runs.values()))} on {_machines(runs.values())}"
+        )
     steps, keys = 0, set()
     for part in figure.files():
         spec = parse_spec(spec_data(figure, part, scale))
         steps += _steps(spec)
         keys.add((spec.env, spec.agent))
     seconds = measured_steps = 0.0
-    for spec_file in Path(root).glob("*/*/spec.yaml"):
+    measured = []
+    for spec_file in sorted(Path(root).glob(f"*-{scale}/*/spec.yaml")):
         run = RunDir(spec_file.parent)
         spec = run.spec()
-        if (spec.env, spec.agent) in keys and run.finished() and _steps(spec):
+        finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
+        if (spec.env, spec.agent) in keys and finished and _steps(spec):
             seconds += wall_seconds(run)
             measured_steps += _steps(spec)
+            measured.append(run)
     if not measured_steps or not steps:
         return "not measured"
-    return f"≈ {duration(steps * seconds / measured_steps)}"
+    return f"≈ {duration(steps * seconds / measured_steps)} on {_machines(measured)}"
 
 
 def figure_rows(root: str | Path) -> list[dict[str, str]]:
@@ -475,7 +510,8 @@ def results_page(root: str | Path) -> str:
         "",
         "Every figure of the paper with an experiment behind it, its claim, and what the library "
         "measured. Generated by `contextrl paper page` from the run folders of `contextrl paper run` "
-        f"(here `{root}`); a figure not run says so. *holds* / *does not hold*: the 95% interval "
+        f"(here `{root}`: specs, manifests, results, curves and timings; `contextrl report RUN` "
+        "draws a run's figures); a figure not run says so. *holds* / *does not hold*: the 95% interval "
         "decides; *undecided*: it does not at that budget. The specs are in `examples/paper/` "
         "(shipped as `contextrl/paper/`); `--scale small` runs the budget two CPU cores afford, "
         "stated per figure below. The paper's Figure 1 (CARLFetch at three target distances and "
@@ -504,13 +540,14 @@ def results_page(root: str | Path) -> str:
             verdict = figure.check(runs)
             budget = _budgets(figure, scale, runs)
             seconds = sum(wall_seconds(r) for r in runs.values())
+            machines = _machines(runs.values())
             lines += [
-                f"- **{scale} budget** ({budget}; {duration(seconds)} here): the claim "
+                f"- **{scale} budget** ({budget}; {duration(seconds)} on {machines}): the claim "
                 f"**{verdict.word}**. {verdict.evidence}.",
             ]
         if not ran:
             lines.append(
-                f"- Not run here. Estimated time at the small budget: "
+                f"- Not run yet. Estimated time at the small budget: "
                 f"{estimate(figure, 'small', root)}."
             )
         lines.append("")
