@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -21,6 +22,7 @@ from typing import Any
 
 import jax
 import numpy as np
+import yaml
 
 from contextrl.agents import ConfigError
 from contextrl.analysis import metrics
@@ -34,7 +36,7 @@ from contextrl.experiments.protocols import expand
 from contextrl.experiments.runner import resume, run_experiment
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.sensitivity import magnitude_lines
-from contextrl.experiments.spec import SpecError, load_yaml, parse_spec
+from contextrl.experiments.spec import SpecError, load_yaml, parse_spec, spec_to_dict
 from contextrl.experiments.train_test import REGIONS
 
 SPEC_FOLDER = Path(__file__).resolve().parents[1] / "paper"
@@ -75,7 +77,7 @@ def _all(decisions: list[bool | None]) -> bool | None:
 
 def _cells(run: RunDir):
     spec = run.spec()
-    return spec, run_cells(run, expand(spec), run.results())
+    return spec, run_cells(run, _plan(spec), run.results())
 
 
 def gap_check(at_least: float) -> Callable[[Mapping[str, RunDir]], Verdict]:
@@ -152,10 +154,11 @@ def similar_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
     return check
 
 
-def _drop(runs: np.ndarray, default_column: int) -> float:
-    """How far the worst magnitude's mean return falls below the default's."""
-    means = np.ma.filled(np.ma.mean(runs, axis=0), np.nan)
-    return float(means[default_column] - np.nanmin(means))
+def _drop(runs: np.ndarray, default_column: int) -> np.ndarray:
+    """How far the worst magnitude's mean return falls below the default's (``runs``: seeds ×
+    magnitudes, with any leading axes of bootstrap samples)."""
+    means = np.ma.filled(np.ma.mean(runs, axis=-2), np.nan)
+    return means[..., default_column] - np.nanmin(means, axis=-1)
 
 
 def sensitivity_check(
@@ -180,9 +183,8 @@ def sensitivity_check(
             column = int(np.flatnonzero(np.isclose(x, 1.0))[0])
             default = float(np.ma.mean(matrix[:, column]))
             rows = rng.integers(0, matrix.shape[0], size=(spec.bootstrap_reps, matrix.shape[0]))
-            samples = [_drop(matrix[r], column) for r in rows]
-            low, high = np.percentile(samples, [2.5, 97.5])
-            drops[feature] = Interval(_drop(matrix, column), float(low), float(high))
+            low, high = np.percentile(_drop(matrix[rows], column), [2.5, 97.5])
+            drops[feature] = Interval(float(_drop(matrix, column)), float(low), float(high))
         # an untrained (random) agent has no training rows: then nothing is called brittle
         random = float(training["random_return"].mean()) if "random_return" in training else np.nan
         if random >= default:  # (False for an untrained agent's nan)
@@ -343,7 +345,18 @@ def spec_data(figure: PaperFigure, part: str, scale: str) -> dict:
 
 
 def _steps(spec) -> int:
-    return spec.training_steps(expand(spec).trials)
+    return spec.training_steps(_plan(spec).trials)
+
+
+def _plan(spec):
+    """``expand(spec)``, once per spec: expanding draws the contexts, and the page reads every
+    figure's specs several times (budgets, estimates, checks)."""
+    return _plan_of(yaml.safe_dump(spec_to_dict(spec), sort_keys=True))
+
+
+@functools.cache
+def _plan_of(text: str):
+    return expand(parse_spec(yaml.safe_load(text)))
 
 
 def figure_folder(root: str | Path, name: str, scale: str) -> Path:
@@ -357,7 +370,7 @@ def finished_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str
         run = RunDir(figure_folder(root, figure.name, scale) / part)
         if not (run.path / "spec.yaml").exists():
             return None
-        plan = expand(run.spec())
+        plan = _plan(run.spec())
         if run.results().empty or len(run.finished()) < max(len(plan.chunks), 1):
             return None
         runs[part] = run
