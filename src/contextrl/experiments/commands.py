@@ -508,6 +508,7 @@ def paper_command(args: argparse.Namespace) -> int:
         args.scale,
         root=args.runs,
         executor=args.executor,
+        address=args.address,
         batch_size=args.batch_size,
         progress=not args.quiet,
     )
@@ -540,6 +541,7 @@ def add_paper(subparsers) -> None:
     )
     parser.add_argument("--out", default="docs/paper.md", help="with page: the file (- prints)")
     parser.add_argument("--executor", choices=list(EXECUTORS), default="local")
+    parser.add_argument("--address", help="with --executor ray: the cluster (default: a local Ray)")
     parser.add_argument(
         "--batch-size",
         type=count,

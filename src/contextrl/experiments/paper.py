@@ -465,9 +465,8 @@ def _machines(runs) -> str:
 
 def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
     """Wall time of ``figure`` at ``scale`` and where: measured when it ran under ``root``, else
-    extrapolated from the seconds per training step of the runs at the same scale with the same
-    environment and agent whose ``contextrl paper run`` ended (the same kind of machine), else "not
-    measured"."""
+    extrapolated from the seconds per training step of finished runs with the same environment and
+    agent (those at ``scale``, else at the small scale), else "not measured"."""
     runs = finished_runs(figure, root, scale)
     if runs is not None:
         return (
@@ -478,19 +477,20 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
         spec = parse_spec(spec_data(figure, part, scale))
         steps += _steps(spec)
         keys.add((spec.env, spec.agent))
-    seconds = measured_steps = 0.0
-    measured = []
-    for spec_file in sorted(Path(root).glob(f"*-{scale}/*/spec.yaml")):
-        run = RunDir(spec_file.parent)
-        spec = run.spec()
-        finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
-        if (spec.env, spec.agent) in keys and finished and _steps(spec):
-            seconds += wall_seconds(run)
-            measured_steps += _steps(spec)
-            measured.append(run)
-    if not measured_steps or not steps:
-        return "not measured"
-    return f"≈ {duration(steps * seconds / measured_steps)} on {_machines(measured)}"
+    for measured_scale in dict.fromkeys((scale, "small")):
+        seconds = measured_steps = 0.0
+        measured = []
+        for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
+            run = RunDir(spec_file.parent)
+            spec = run.spec()
+            finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
+            if (spec.env, spec.agent) in keys and finished and _steps(spec):
+                seconds += wall_seconds(run)
+                measured_steps += _steps(spec)
+                measured.append(run)
+        if measured_steps and steps:
+            return f"≈ {duration(steps * seconds / measured_steps)} on {_machines(measured)}"
+    return "not measured"
 
 
 def figure_rows(root: str | Path) -> list[dict[str, str]]:
@@ -527,7 +527,9 @@ def results_page(root: str | Path) -> str:
         "draws a run's figures); a figure not run says so. *holds* / *does not hold*: the 95% interval "
         "decides; *undecided*: it does not at that budget. The specs are in `examples/paper/` "
         "(shipped as `contextrl/paper/`); `--scale small` runs the budget two CPU cores afford, "
-        "stated per figure below. The paper's Figure 1 (CARLFetch at three target distances and "
+        "stated per figure below, with the time the paper's budget would take (extrapolated per training "
+        "step from the runs of the same environment and agent); on a Ray cluster it is `contextrl "
+        "paper run FIGURE --scale paper --executor ray --address auto`. The paper's Figure 1 (CARLFetch at three target distances and "
         "three ground frictions) is a picture, not an experiment: `contextrl render Fetch --grid "
         "target_distance=2,6,10 --grid friction=0.05,0.6,1.0` draws it (families/brax.md).",
         "",
@@ -563,6 +565,11 @@ def results_page(root: str | Path) -> str:
                 f"- Not run yet. Estimated time at the small budget: "
                 f"{estimate(figure, 'small', root)}."
             )
+        trains = any(
+            parse_spec(spec_data(figure, p, "paper")).trains_agents for p in figure.files()
+        )
+        if trains and finished_runs(figure, root, "paper") is None:
+            lines.append(f"- **paper budget**: not run; {estimate(figure, 'paper', root)}.")
         lines.append("")
     return "\n".join(lines)
 
