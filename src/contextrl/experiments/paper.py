@@ -126,6 +126,10 @@ def _variant_difference(runs: Mapping[str, RunDir], a: str, b: str) -> tuple[dic
     return scores, diff
 
 
+def _means(scores: dict, a: str, b: str) -> str:
+    return ", ".join(f"{v} {metrics.aggregate_mean(scores[v].matrix):.4g}" for v in (a, b))
+
+
 def better_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
     """Variant ``a``'s mean test return is above ``b``'s."""
 
@@ -134,8 +138,7 @@ def better_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
         return Verdict(
             _decide(diff),
             f"mean test return {a} − {b} = {diff} (95% CI; the claim needs it above 0); "
-            f"{a} {metrics.aggregate_mean(scores[a].matrix):.4g}, "
-            f"{b} {metrics.aggregate_mean(scores[b].matrix):.4g}",
+            + _means(scores, a, b),
         )
 
     return check
@@ -145,10 +148,11 @@ def similar_check(a: str, b: str) -> Callable[[Mapping[str, RunDir]], Verdict]:
     """No difference between the mean test returns of ``a`` and ``b``: the interval includes 0."""
 
     def check(runs: Mapping[str, RunDir]) -> Verdict:
-        _, diff = _variant_difference(runs, a, b)
+        scores, diff = _variant_difference(runs, a, b)
         return Verdict(
             diff.low <= 0.0 <= diff.high,
-            f"mean test return {a} − {b} = {diff} (95% CI; the claim needs it to include 0)",
+            f"mean test return {a} − {b} = {diff} (95% CI; the claim needs it to include 0); "
+            + _means(scores, a, b),
         )
 
     return check
