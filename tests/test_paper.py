@@ -4,6 +4,7 @@ the tiny budget; the claim checks decide from intervals; the results page is gen
 from __future__ import annotations
 
 import html
+import os
 from pathlib import Path
 
 import pytest
@@ -17,12 +18,13 @@ from contextrl.experiments.paper import (
     SPEC_FOLDER,
     _all,
     _decide,
+    _plan,
     results_page,
     run_figure,
     spec_data,
 )
-from contextrl.experiments.protocols import expand
 from contextrl.experiments.runner import run_experiment
+from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec
 
 
@@ -39,7 +41,7 @@ def test_every_figure_parses_and_plans_at_every_scale(scale):
         for part in figure.files():
             spec = parse_spec(spec_data(figure, part, scale))
             assert spec.name.endswith(f"-{scale}")
-            expand(spec)  # contexts drawn, trials planned
+            _plan(spec)  # contexts drawn, trials planned (kept: the results page reads them again)
 
 
 def test_the_small_scale_keeps_the_papers_schedule_and_cuts_the_budget():
@@ -65,7 +67,8 @@ def paper_runs(tmp_path_factory):
     return tmp_path_factory.mktemp("paper")
 
 
-# Figures run with the paper's agents, on JAX and host simulators: a minute each, mostly compiling.
+# Figures run with the paper's agents on JAX environments, mostly compiling (the agents' host paths
+# run in test_experiments_matrix.py: C51 on LunarLander in three protocols, DQN in visibility).
 # Every other figure runs end to end with the random agent below, except the PB2 figures, which need
 # an agent with hyper-parameters and a local Ray (minutes each on two cores): their specs parse and
 # plan above, and PB2 itself runs in test_experiments_hpo.py.
@@ -73,7 +76,6 @@ WITH_THEIR_AGENTS = [
     "tabular_cmdp",
     "optgap_cartpole",
     "ecdf_pendulum",
-    "baseline_lunarlander_visibility",
     "baseline_mountaincar_default",
 ]
 PB2_PARSED_ONLY = ["pb2_acrobot", "pb2_lunarlander", "pb2_pendulum"]
@@ -120,6 +122,8 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     assert gap.holds is False and "(95% CI; the claim needs it above 30)" in gap.evidence
     exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
     assert exact.holds is True and "3-state cMDP: 3;" in exact.evidence
+    manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
+    assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
 
 
 def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):

@@ -363,6 +363,12 @@ def _plan_of(text: str):
     return expand(parse_spec(yaml.safe_load(text)))
 
 
+@functools.cache
+def _spec_of(text: str):
+    """A run's spec.yaml parsed once: every estimate on the page reads every run's spec."""
+    return parse_spec(load_yaml(text))
+
+
 def figure_folder(root: str | Path, name: str, scale: str) -> Path:
     return Path(root) / f"{name}-{scale}"
 
@@ -486,7 +492,7 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
         measured = []
         for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
             run = RunDir(spec_file.parent)
-            spec = run.spec()
+            spec = _spec_of(spec_file.read_text(encoding="utf-8"))
             finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
             if (spec.env, spec.agent) in keys and finished and _steps(spec):
                 seconds += wall_seconds(run)
