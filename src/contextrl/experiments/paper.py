@@ -463,14 +463,9 @@ def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], 
 
 def _machines(runs) -> str:
     """Where ``runs`` trained, as their manifests say: the machine and JAX's version."""
-    return " and ".join(
-        sorted(
-            {
-                f"{m['paper_machine']} (JAX {m['versions']['jax']})"
-                for m in (r.manifest() for r in runs)
-            }
-        )
-    )
+    manifests = [run.manifest() for run in runs]
+    named = {f"{m['paper_machine']} (JAX {m['versions']['jax']})" for m in manifests}
+    return " and ".join(sorted(named))
 
 
 def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
@@ -537,10 +532,11 @@ def results_page(root: str | Path) -> str:
         "draws a run's figures); a figure not run says so. *holds* / *does not hold*: the 95% interval "
         "decides; *undecided*: it does not at that budget. The specs are in `examples/paper/` "
         "(shipped as `contextrl/paper/`); `--scale small` runs the budget two CPU cores afford, "
-        "stated per figure below, with the time the paper's budget would take (extrapolated per training "
-        "step from the runs of the same environment and agent); on a Ray cluster it is `contextrl "
-        "paper run FIGURE --scale paper --executor ray --address auto`. The paper's Figure 1 (CARLFetch at three target distances and "
-        "three ground frictions) is a picture, not an experiment: `contextrl render Fetch --grid "
+        "stated per figure below, with the time the paper's budget would take (extrapolated per "
+        "training step from the runs of the same environment and agent); on a Ray cluster it is "
+        "`contextrl paper run FIGURE --scale paper --executor ray --address auto`. The paper's "
+        "Figure 1 (CARLFetch at three target distances and three ground frictions) is a picture, "
+        "not an experiment: `contextrl render Fetch --grid "
         "target_distance=2,6,10 --grid friction=0.05,0.6,1.0` draws it (families/brax.md).",
         "",
     ]
