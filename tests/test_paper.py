@@ -12,13 +12,19 @@ import pytest
 from contextrl.analysis.intervals import Interval
 from contextrl.cli import main
 from contextrl.experiments.paper import (
+    BRITTLE,
+    EQUIVALENCE,
     FIGURES,
+    GATE,
+    HARMLESS,
+    MIN_SEEDS,
     PAPER_RUNS,
     SCALES,
     SPEC_FOLDER,
     _all,
     _decide,
     _plan,
+    _zone,
     results_page,
     run_figure,
     spec_data,
@@ -108,22 +114,46 @@ def test_every_other_figure_runs_end_to_end_with_a_random_agent(name, tmp_path):
 
 
 def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
-    """Episodes of at most 20 steps earn CartPole returns of at most 20, so no interval of the gap
-    reaches 30: "at least 30" does not hold; the paper's 3-state cMDP has its exact gap of 3 (a
-    context-oblivious policy must pick one action in the state whose best action the contexts
-    disagree on). MountainCar's episodes of 20 steps never reach the flag from the valley: the
-    trained agent and the random policy both earn -20, so no feature is judged."""
+    """Tiny runs have 2 seeds: no verdict, whatever the intervals say, and the page says why.
+    Episodes of at most 20 steps earn CartPole returns of at most 20, so every interval of the gap
+    lies below 30: the rule alone would say "does not hold". MountainCar's 20-step episodes never
+    reach the flag: trained and random agents both earn -20, shown beside the evidence. The paper's
+    3-state cMDP is solved exactly (no seeds, no gate): its gap of 3 decides."""
     untrained, _ = run_figure(
         "baseline_mountaincar_default", "tiny", root=paper_runs, progress=False
     )
-    assert untrained.holds is None and "does not beat a random policy" in untrained.evidence
-    assert "(mean return -20 against -20)" in untrained.evidence
+    assert untrained.word == "no verdict" and untrained.withheld == "2 seeds, fewer than 5"
+    assert "trained vs random return at the training contexts: hidden -20 vs -20" in (
+        untrained.evidence
+    )
     gap, _ = run_figure("optgap_cartpole", "tiny", root=paper_runs, progress=False)
-    assert gap.holds is False and "(95% CI; the claim needs it above 30)" in gap.evidence
+    assert gap.word == "no verdict" and gap.holds is False
+    assert "(95% CI; each needs to lie above 30)" in gap.evidence
     exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
-    assert exact.holds is True and "3-state cMDP: 3;" in exact.evidence
+    assert exact.holds is True and exact.word == "holds" and "3-state cMDP: 3;" in exact.evidence
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
     assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
+
+
+def test_every_spec_states_the_decision_rule_its_check_applies():
+    """The rule in each spec file (written before its runs) is the one the page prints and the
+    check applies: both come from the same text, so they cannot drift apart."""
+    for figure in FIGURES.values():
+        for part in figure.files():
+            assert figure.header("Decision", part) == figure.rule, (figure.name, part)
+        if figure.check.gated:
+            assert figure.rule.endswith(GATE)
+        assert figure.header("Budget"), figure.name
+    assert [f.name for f in FIGURES.values() if f.stated_budget] == ["kirk_cartpole"]
+
+
+def test_sensitivity_zones_and_equivalence_margins_are_fixed_fractions_of_the_gain():
+    gain = 200.0  # harmless below 20, brittle above 100
+    assert _zone(Interval(5.0, 0.0, 19.0), gain) == "harmless"
+    assert _zone(Interval(50.0, 21.0, 99.0), gain) == "moderate"
+    assert _zone(Interval(150.0, 101.0, 300.0), gain) == "brittle"
+    assert _zone(Interval(20.0, 10.0, 30.0), gain) is None  # straddles a boundary: undecided
+    assert (HARMLESS, BRITTLE, EQUIVALENCE, MIN_SEEDS) == (0.10, 0.50, 0.10, 5)
 
 
 def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
@@ -136,7 +166,10 @@ def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
     for name in FIGURES:
         assert f"## {name}\n" in page
     tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
-    assert "**small budget** (exact solution; " in tabular and "the claim **holds**" in tabular
+    assert "**Solved exactly** (exact solution; " in tabular and "the claim **holds**" in tabular
+    for name in ("visibility_pendulum", "ecdf_pendulum", "kirk_pendulum_gravity_length"):
+        section = page.split(f"## {name}\n")[1].split("\n## ")[0]
+        assert "- **At full budget** (" in section and "over seeds" in section
 
 
 def test_the_command_lists_figures_and_refuses_an_unknown_one(capsys, tmp_path):

@@ -1,10 +1,14 @@
-"""Aggregate metrics with seeded stratified-bootstrap confidence intervals, plots and HTML reports."""
+"""Aggregate metrics with seeded, design-aware bootstrap confidence intervals, plots and HTML reports."""
 
 from contextrl.analysis.intervals import (
+    FIXED,
+    RUNS,
+    SAMPLED,
+    SEEDS,
     Interval,
     bootstrap_ci,
     interval_estimates,
-    paired_bootstrap_ci,
+    two_sample_ci,
 )
 from contextrl.analysis.metrics import (
     aggregate_iqm,
@@ -12,12 +16,17 @@ from contextrl.analysis.metrics import (
     aggregate_median,
     aggregate_optimality_gap,
     context_optimality_gap,
+    difference_of_means,
     fraction_solved,
     per_context_gap,
     probability_of_improvement,
 )
 
 __all__ = [
+    "FIXED",
+    "RUNS",
+    "SAMPLED",
+    "SEEDS",
     "Interval",
     "aggregate_iqm",
     "aggregate_mean",
@@ -25,9 +34,10 @@ __all__ = [
     "aggregate_optimality_gap",
     "bootstrap_ci",
     "context_optimality_gap",
+    "difference_of_means",
     "fraction_solved",
     "interval_estimates",
-    "paired_bootstrap_ci",
     "per_context_gap",
     "probability_of_improvement",
+    "two_sample_ci",
 ]

@@ -14,7 +14,7 @@ import yaml
 
 import contextrl as crl
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import Interval, interval_estimates
+from contextrl.analysis.intervals import RUNS, SAMPLED, SEEDS, Interval, interval_estimates
 from contextrl.analysis.report import Figure, Section, render
 from contextrl.experiments.protocols import (
     TRIAL_COLUMNS,
@@ -76,11 +76,14 @@ def score_cells(rows: pd.DataFrame) -> pd.DataFrame:
 @dataclasses.dataclass(frozen=True)
 class Scores:
     """One agent's score matrix, seeds × (test set, context) columns, masked where a cell is missing,
-    with each missing cell as (seed, test set, context, why)."""
+    with each missing cell as (seed, test set, context, why), and the unit its intervals resample:
+    ``SEEDS`` where one agent per seed was tested on every context, ``RUNS`` where every cell is an
+    agent of its own (the specialists of the optimality gap)."""
 
     matrix: np.ndarray
     contexts: tuple[tuple[str, Any], ...]
     missing: tuple[tuple[Any, str, Any, str], ...]
+    unit: str = SEEDS
 
     @property
     def present(self) -> int:
@@ -130,21 +133,53 @@ def score_matrices(cells: pd.DataFrame, labels: pd.Series | None = None) -> dict
             for (test_set, context), absent in zip(columns, row, strict=True)
             if absent
         )
-        out[name] = Scores(matrix if missing else matrix.data, tuple(columns), missing)
+        out[name] = Scores(
+            matrix if missing else matrix.data, tuple(columns), missing, _unit(group)
+        )
     return out
+
+
+def _unit(cells: pd.DataFrame) -> str:
+    """``RUNS`` when every cell is one agent that no other cell shares (each specialist tested on
+    its own context), else ``SEEDS`` (a seed's agent, or agents, tested on several contexts)."""
+    own = (cells["trials"] == 1).all() and not cells["trial"].duplicated().any()
+    return RUNS if own and cells["context"].nunique() > 1 else SEEDS
+
+
+def design_words(scores: Mapping[str, Scores], contexts: str) -> str:
+    """What the intervals of ``scores`` resample, in the words a report prints beside them."""
+    units = {s.unit for s in scores.values()}
+    parts = []
+    if SEEDS in units:
+        parts.append("seeds (each with all its contexts)")
+    if RUNS in units:
+        parts.append(
+            "contexts, each with its runs" if contexts == SAMPLED else "each context's runs"
+        )
+    if contexts == SAMPLED and SEEDS in units:
+        parts.append("the test contexts")
+    return " and ".join(dict.fromkeys(parts))
 
 
 def score_intervals(
     scores: Mapping[str, Scores],
     *,
+    contexts: str,
     reps: int,
     seed: int,
     metrics_: Mapping[str, Callable] = CI_METRICS,
 ) -> tuple[dict[str, dict[str, Interval]], list[dict]]:
-    """Bootstrap intervals of every agent with a present cell, and a table row per agent saying
-    which cells its statistics are computed on (an agent with none says so instead)."""
+    """Bootstrap intervals of every agent with a present cell, each resampling its own unit (and
+    the test contexts where ``contexts`` is ``SAMPLED``), and a table row per agent saying which cells
+    its statistics are computed on (an agent with none says so instead)."""
+    shown_scores = {name: s for name, s in scores.items() if s.present}
     intervals = interval_estimates(
-        {name: s.matrix for name, s in scores.items() if s.present}, metrics_, reps=reps, seed=seed
+        {name: s.matrix for name, s in shown_scores.items()},
+        metrics_,
+        units={name: s.unit for name, s in shown_scores.items()},
+        contexts=contexts,
+        reps=reps,
+        seed=seed,
     )
 
     def shown(name: str, metric: str) -> str:
@@ -168,11 +203,12 @@ def score_intervals(
 ONE_SEED = "no interval with one seed"
 
 
-def interval_title(title: str, scores: Mapping[str, Scores], interval: str = "95% CI") -> str:
-    """``title (95% CI)``, or ``title (no interval with one seed)`` when every agent has one seed:
-    a bootstrap over one seed is zero wide, which a "95% CI" label would present as certainty."""
+def interval_title(title: str, scores: Mapping[str, Scores], contexts: str) -> str:
+    """``title (95% CI over …)`` naming what was resampled, or ``title (no interval with one
+    seed)`` when every agent has one seed: a bootstrap over one seed is zero wide, which a "95% CI"
+    label would present as certainty."""
     several = any(s.matrix.shape[0] > 1 for s in scores.values())
-    return f"{title} ({interval if several else ONE_SEED})"
+    return f"{title} ({f'95% CI over {design_words(scores, contexts)}' if several else ONE_SEED})"
 
 
 MISSING_TEXT = (
@@ -460,10 +496,13 @@ def per_context_section(
     csv: str = "results/per_context.csv",
     text: Sequence[str] = (),
     tables: Sequence[tuple[str, list[dict]]] = (),
+    contexts: str | None = None,
 ) -> Section:
     """Test return against each varied feature (CI band over seeds, training range shaded), a heat
     map when two features vary, and the per-context table (all of it in ``csv``), from the score
-    cells of :func:`score_cells`; ``tables`` come last."""
+    cells of :func:`score_cells`; ``tables`` come last. ``contexts``: the intervals' design of the
+    test contexts (default: the protocol's)."""
+    contexts = spec.test_contexts if contexts is None else contexts
     features = varying_features(cells)
     figures = []
     for feature in features:
@@ -531,8 +570,8 @@ def per_context_section(
             f"{int(group['trials'].max())} agents (trained on different contexts)."
         )
     scores = score_matrices(cells)
-    _, rows = score_intervals(scores, reps=spec.bootstrap_reps, seed=spec.seed)
-    intervals = (interval_title("Test return", scores, "95% CI over seeds and contexts"), rows)
+    _, rows = score_intervals(scores, contexts=contexts, reps=spec.bootstrap_reps, seed=spec.seed)
+    intervals = (interval_title("Test return", scores, contexts), rows)
     return Section(title, text, [intervals, (caption, shown), *tables], figures)
 
 
@@ -582,6 +621,7 @@ def evaluation_sections(run: RunDir, spec: CommonSpec, results: pd.DataFrame) ->
                 ]
                 + ([MISSING_TEXT] if missing else []),
                 tables=[("Missing results", missing)] if missing else [],
+                contexts=SAMPLED,  # drawn from the distributions `contextrl eval` was given
             )
         )
     return sections

@@ -15,6 +15,7 @@ import pandas as pd
 
 import contextrl as crl
 from contextrl.analysis import plots
+from contextrl.analysis.intervals import SAMPLED
 from contextrl.analysis.report import Section, render
 from contextrl.experiments.analyze import (
     MISSING_TEXT,
@@ -129,12 +130,14 @@ def compare_runs(
     seed = specs[0].seed
     reps = min(spec.bootstrap_reps for spec in specs)
     scores = score_matrices(results, results["overlay"])
-    cis, ci_rows = score_intervals(scores, reps=reps, seed=seed)
+    designs = {spec.test_contexts for spec in specs}
+    contexts = designs.pop() if len(designs) == 1 else SAMPLED  # mixed: the wider design
+    cis, ci_rows = score_intervals(scores, contexts=contexts, reps=reps, seed=seed)
     figures = [
         figure(
             "compare-intervals",
             plots.intervals(cis),
-            interval_title("Aggregate test return per run and agent", scores),
+            interval_title("Aggregate test return per run and agent", scores, contexts),
         )
     ]
     missing = missing_rows(scores)
@@ -177,7 +180,7 @@ def compare_runs(
         Section(
             "Comparison",
             [MISSING_TEXT] if missing else [],
-            [(interval_title("Test return", scores), ci_rows)]
+            [(interval_title("Test return", scores, contexts), ci_rows)]
             + ([("Missing results", missing)] if missing else []),
             figures,
         ),

@@ -9,10 +9,12 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import Interval, paired_bootstrap_ci
+from contextrl.analysis.intervals import Interval, two_sample_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
+    CI_METRICS,
     Scores,
+    design_words,
     figure,
     interval_title,
     score_intervals,
@@ -69,12 +71,18 @@ def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
 
 @dataclasses.dataclass(frozen=True)
 class GapStatistics:
-    """One variant's optimality gap as the report states it (bench_findings.py prints it too)."""
+    """One variant's optimality gap as the report states it (bench_findings.py prints it too).
+
+    Every interval resamples the general agent's seeds (each with all its contexts) and the
+    contexts, each with its specialists: the contexts are a sample from the distribution the gap is
+    defined over."""
 
     general: Scores
     specialists: Scores
     gap: Interval  # E_c[G_specialist(c) − G_general(c)]
+    differences: dict  # specialists' minus the general agent's mean, median and IQM
     improvement: Interval  # P(a specialist beats the general agent on a context)
+    finished: dict  # the fraction of cells at the best return: general, specialists, difference
     aggregates: list  # mean, median, IQM with their intervals, one row per agent
     intervals: dict  # the same intervals for the figure
 
@@ -86,9 +94,14 @@ class GapStatistics:
         }
 
 
+def _aggregate_difference(aggregate):
+    """Specialists' (second argument) aggregate minus the general agent's (first)."""
+    return lambda general, specialists: aggregate(specialists) - aggregate(general)
+
+
 def gap_statistics(spec: OptimalityGapSpec, cells: pd.DataFrame) -> dict[str, GapStatistics]:
-    """Per variant with both kinds finished, the gap, the probability of improvement and the
-    aggregates, with stratified-bootstrap intervals from the spec's seed."""
+    """Per variant with both kinds finished, the gap, the differences of the aggregates, the
+    probability of improvement and the finished fractions, with intervals from the spec's seed."""
     out = {}
     for variant in spec.variants:
         mine = cells[cells["variant"] == variant]
@@ -101,25 +114,40 @@ def gap_statistics(spec: OptimalityGapSpec, cells: pd.DataFrame) -> dict[str, Ga
                 f"optimality gap ({variant}): the general agent was tested on contexts "
                 f"{[c for _, c in g.contexts]} but the specialists on {[c for _, c in s.contexts]}"
             )
-        cis, rows = score_intervals(
-            {"general": g, "specialists": s}, reps=spec.bootstrap_reps, seed=spec.seed
-        )
-        gap = paired_bootstrap_ci(
-            g.matrix,
-            s.matrix,
-            metrics.context_optimality_gap,
-            reps=spec.bootstrap_reps,
-            seed=spec.seed,
-        )
-        improvement = paired_bootstrap_ci(
-            s.matrix,
-            g.matrix,
-            metrics.probability_of_improvement,
-            reps=spec.bootstrap_reps,
-            seed=spec.seed,
-        )
-        out[variant] = GapStatistics(g, s, gap, improvement, rows, cis)
+        out[variant] = _gap(spec, g, s)
     return out
+
+
+def _gap(spec: OptimalityGapSpec, g: Scores, s: Scores) -> GapStatistics:
+    design = {"contexts": spec.test_contexts, "reps": spec.bootstrap_reps, "seed": spec.seed}
+    cis, rows = score_intervals({"general": g, "specialists": s}, **design)
+
+    def interval(metric, first=g, second=s):
+        return two_sample_ci(
+            first.matrix, second.matrix, metric, units=(first.unit, second.unit), **design
+        )
+
+    threshold = metrics.near_best_threshold(g.matrix, s.matrix)
+    return GapStatistics(
+        g,
+        s,
+        interval(metrics.context_optimality_gap),
+        {
+            name: interval(_aggregate_difference(aggregate))
+            for name, aggregate in CI_METRICS.items()
+        },
+        interval(metrics.probability_of_improvement, s, g),
+        {
+            "threshold": threshold,
+            "general": metrics.fraction_solved(g.matrix, threshold),
+            "specialists": metrics.fraction_solved(s.matrix, threshold),
+            "difference": interval(
+                _aggregate_difference(lambda m: metrics.fraction_solved(m, threshold))
+            ),
+        },
+        rows,
+        cis,
+    )
 
 
 def _per_seed_text(stats: GapStatistics) -> str:
@@ -137,30 +165,30 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
     sections = []
     for variant, stats in gap_statistics(spec, cells).items():
         g, s = stats.general, stats.specialists
-        g_scores, s_scores = g.matrix, s.matrix
         best = float(max(g.values.max(), s.values.max()))
-        threshold = metrics.near_best_threshold(g_scores, s_scores)
-        solved = {
-            "general": metrics.fraction_solved(g_scores, threshold),
-            "specialists": metrics.fraction_solved(s_scores, threshold),
-        }
-        per_context = metrics.per_context_gap(g_scores, s_scores)
+        finished = stats.finished
+        per_context = metrics.per_context_gap(g.matrix, s.matrix)
         varying = plan.spec.space().varying(plan.sets["train"].contexts)
         feature = varying[0] if varying else None
         for row in stats.aggregates:
-            row["fraction at best return"] = solved[row["agent"]]
+            row["fraction at best return"] = finished[row["agent"]]
+        over = design_words({"general": g, "specialists": s}, spec.test_contexts)
         text = [
             f"Variant {variant}: one general agent trained on {spec.num_contexts} contexts vs one "
             f"specialist per context; each evaluated on the context(s) it was trained on "
-            f"({spec.eval_episodes} episodes, {spec.seeds} seeds). 95% stratified-bootstrap CIs "
+            f"({spec.eval_episodes} episodes, {spec.seeds} seeds). 95% bootstrap CIs over {over} "
             f"({spec.bootstrap_reps} replicates, seed {spec.seed}).",
             f"Optimality gap E_c[G_specialist(c) − G_general(c)] = {stats.gap}.",
+            "Specialists minus the general agent: "
+            + ", ".join(f"{name} {d}" for name, d in stats.differences.items())
+            + ".",
             "Probability that a specialist beats the general agent on a context: "
             f"{stats.improvement}.",
             _per_seed_text(stats),
             f"Fraction of run×context returns at the best return observed in the run ({best:g}; "
-            f"within 1% of the observed return range, i.e. ≥ {threshold:g}): "
-            f"general {solved['general']:.2f}, specialists {solved['specialists']:.2f}.",
+            f"within 1% of the observed return range, i.e. ≥ {finished['threshold']:g}): "
+            f"general {finished['general']:.2f}, specialists {finished['specialists']:.2f} "
+            f"(difference {finished['difference']}).",
         ]
         if g.missing or s.missing:
             text.append(
@@ -176,9 +204,10 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
             figure(
                 f"optgap-intervals-{variant}",
                 plots.intervals(
-                    stats.intervals, title=interval_title("Aggregate return", {"g": g, "s": s})
+                    stats.intervals,
+                    title=interval_title("Aggregate return", {"g": g, "s": s}, spec.test_contexts),
                 ),
-                "Mean, median and IQM with stratified-bootstrap CIs",
+                f"Mean, median and IQM with 95% bootstrap CIs over {over}",
             ),
         ]
         if feature is not None:

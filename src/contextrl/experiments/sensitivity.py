@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
+from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
 from contextrl.context.features import ContextError
 from contextrl.experiments.analyze import figure, natural_key, return_lines, training_figure
@@ -35,6 +36,7 @@ class SensitivitySpec(CommonSpec):
     magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
 
     per_context_figures = False  # its own view: return against the magnitude A per feature
+    test_contexts = FIXED  # the sweep of magnitudes is the claim's own set
 
     def validate(self) -> None:
         super().validate()

@@ -24,6 +24,7 @@ import yaml
 
 import contextrl as crl
 from contextrl.agents import VARIANTS, ConfigError, get_agent
+from contextrl.analysis.intervals import SAMPLED
 from contextrl.context import distributions
 from contextrl.context.features import ContextError
 
@@ -238,6 +239,9 @@ class CommonSpec:
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
     env_defaults: ClassVar[tuple[str, ...]] = ()  # fields (None) filled from ENV_DEFAULTS
     per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
+    # The test contexts' part in the intervals: drawn from the distribution a claim is about
+    # (resampled with the seeds), or a fixed grid or sweep the claim is about (seeds only).
+    test_contexts: ClassVar[str] = SAMPLED
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
     runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
     # Shared fields the protocol does not use, each with why: set off its default, one is refused.

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
+from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
@@ -59,6 +60,7 @@ class TrainTestSpec(CommonSpec):
     num_test_contexts: int = 144
 
     draws_heatmap = True  # its sections draw a heat map per mode and variant
+    test_contexts = FIXED  # a grid over the test box, each point labelled with its region
 
     def validate(self) -> None:
         super().validate()
@@ -238,6 +240,7 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
                 scores = score_matrices(subset, subset["region"])
                 _, (row,) = score_intervals(
                     scores,
+                    contexts=spec.test_contexts,
                     reps=spec.bootstrap_reps,
                     seed=spec.seed,
                     metrics_={"mean": metrics.aggregate_mean},
@@ -259,7 +262,12 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
         "one or both features."
     ]
     sections = [
-        Section("Train/test modes", text, [("Mean return per region (95% CI)", rows)], figures)
+        Section(
+            "Train/test modes",
+            text,
+            [("Mean return per region (95% CI over seeds, each with all its contexts)", rows)],
+            figures,
+        )
     ]
     if not curves.empty:
         steps, by_variant = curves_by_variant(curves)

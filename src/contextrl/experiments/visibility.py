@@ -8,10 +8,11 @@ import dataclasses
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import paired_bootstrap_ci
+from contextrl.analysis.intervals import two_sample_ci
 from contextrl.analysis.report import Section
 from contextrl.experiments.analyze import (
     curves_by_variant,
+    design_words,
     figure,
     interval_title,
     score_intervals,
@@ -56,7 +57,8 @@ def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
 
 def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
     scores = score_matrices(cells, cells["variant"])
-    cis, rows = score_intervals(scores, reps=spec.bootstrap_reps, seed=spec.seed)
+    contexts = spec.test_contexts
+    cis, rows = score_intervals(scores, contexts=contexts, reps=spec.bootstrap_reps, seed=spec.seed)
     text = [
         f"{spec.agent} agents with context visibility {list(spec.variants)} trained on "
         f"{spec.num_train_contexts} contexts and tested on {spec.num_test_contexts} held-out contexts "
@@ -66,14 +68,16 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.
     for name, other in scores.items():
         if hidden is None or name == "hidden" or not (hidden.present and other.present):
             continue
-        poi = paired_bootstrap_ci(
+        poi = two_sample_ci(
             other.matrix,
             hidden.matrix,
             metrics.probability_of_improvement,
+            units=(other.unit, hidden.unit),
+            contexts=contexts,
             reps=spec.bootstrap_reps,
             seed=spec.seed,
         )
-        text.append(f"P({name} > hidden) = {poi}")
+        text.append(f"P({name} > hidden) = {poi} (95% CI over {design_words(scores, contexts)})")
     returns = {name: s.values for name, s in scores.items() if s.present}
     figures = []
     if not curves.empty:
@@ -90,8 +94,8 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.
         figure("test-histogram", plots.histograms(returns, title="Test returns"), "Test returns"),
         figure(
             "test-intervals",
-            plots.intervals(cis, title=interval_title("Test return", scores)),
-            "Aggregate test return with stratified-bootstrap CIs",
+            plots.intervals(cis, title=interval_title("Test return", scores, contexts)),
+            f"Aggregate test return with 95% bootstrap CIs over {design_words(scores, contexts)}",
         ),
     ]
     return [Section("Context visibility", text, [("Test return", rows)], figures)]
