@@ -70,6 +70,7 @@ LONGEST_FILES = (
     "test_brax.py",  # ~60
     "test_one_path.py",  # ~55
     "test_experiments_agents.py",  # ~45
+    "test_interval_coverage.py",  # ~40: 6,000 synthetic experiments
     "test_agents_ppo.py",  # ~38
     "test_platformer_learning.py",  # ~36
     "test_experiments_runs.py",  # ~30

@@ -19,6 +19,7 @@ import pytest
 from test_experiments_aggregation import result_rows  # the rows a run writes, constructed
 
 from contextrl.analysis import plots
+from contextrl.analysis.intervals import SAMPLED
 from contextrl.cli import main
 from contextrl.context.distributions import Constant, Uniform
 from contextrl.experiments import RunDir, expand, parse_spec
@@ -247,9 +248,9 @@ def test_one_seed_has_no_interval(tmp_path, capsys):
     from contextrl.experiments.analyze import interval_title
 
     one = {"a": Scores(np.ma.masked_invalid([[1.0, 2.0, 3.0]]), (), ())}
-    _, rows = score_intervals(one, reps=20, seed=0)
+    _, rows = score_intervals(one, contexts=SAMPLED, reps=20, seed=0)
     assert rows[0]["mean"] == "2 (no interval with one seed)"
-    assert interval_title("Test return", one) == "Test return (no interval with one seed)"
+    assert interval_title("Test return", one, SAMPLED) == "Test return (no interval with one seed)"
     a = constructed_run(tmp_path, "a", "CartPole", CARTPOLE, seeds=1)
     b = constructed_run(tmp_path, "b", "CartPole", CARTPOLE, seeds=1)
     status, _, err = cli(capsys, "report", a.path, b.path, "--out", tmp_path / "x.html")

@@ -43,7 +43,7 @@ UNITS = (SEEDS, RUNS)
 FIXED = "fixed"  # the claim is about the contexts tested
 SAMPLED = "sampled"  # the contexts are a sample from the distribution the claim is about
 CONTEXTS = (FIXED, SAMPLED)
-_CELLS_PER_CHUNK = 2_000_000  # replicates are evaluated in chunks of about this many cells
+_CELLS_PER_CHUNK = 8_000_000  # replicates are evaluated in chunks of about this many cells
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,15 +125,17 @@ def _resample(
     resampled = columns is not None
     if columns is None:
         columns = np.broadcast_to(np.arange(scores.shape[1]), (size, scores.shape[1]))
+    masked = np.ma.is_masked(scores)
     data = np.ma.getdata(scores)[:, columns].transpose(1, 0, 2)
-    mask = np.ma.getmaskarray(scores)[:, columns].transpose(1, 0, 2)
+    mask = np.ma.getmaskarray(scores)[:, columns].transpose(1, 0, 2) if masked else None
     runs = data.shape[1]
     if unit == SEEDS:  # whole rows: a seed keeps all its contexts (and its missing cells)
-        rows = rng.integers(0, runs, size=data.shape[:2])[..., None]
-        data, mask = np.take_along_axis(data, rows, 1), np.take_along_axis(mask, rows, 1)
+        rows = rng.integers(0, runs, size=data.shape[:2])
+        data = data[np.arange(len(rows))[:, None], rows]
+        mask = mask[np.arange(len(rows))[:, None], rows] if masked else None
     elif resampled:  # runs nested in resampled contexts come with them
         pass
-    elif not mask.any():  # each context's runs on their own
+    elif not masked:  # each context's runs on their own
         rows = rng.integers(0, runs, size=data.shape)
         data = np.take_along_axis(data, rows, 1)
     else:  # a context draws as many runs as it has, from those it has; the rest stays masked
@@ -142,7 +144,7 @@ def _resample(
         draws = rng.integers(0, np.maximum(counts, 1), size=data.shape)
         data = np.take_along_axis(data, np.take_along_axis(present_first, draws, 1), 1)
         mask = np.arange(runs)[None, :, None] >= counts
-    return np.ma.MaskedArray(data, mask) if mask.any() else data
+    return np.ma.MaskedArray(data, mask) if masked and mask.any() else data
 
 
 def _bootstrap(

@@ -41,7 +41,9 @@ def as_scores(scores, name: str = "scores") -> np.ndarray:
 
 def _value(result):
     """A float for one matrix, an array (NaN where undefined) for a stack of them."""
-    result = np.ma.filled(np.ma.asarray(result, dtype=np.float64), np.nan)
+    if np.ma.isMaskedArray(result):
+        result = np.ma.filled(result.astype(np.float64), np.nan)
+    result = np.asarray(result, dtype=np.float64)
     return float(result) if result.ndim == 0 else result
 
 
@@ -57,7 +59,9 @@ def context_means(scores, name: str = "scores") -> np.ndarray:
 
 def aggregate_mean(scores) -> float:
     """Mean over contexts of the per-context mean over runs."""
-    return _value(np.ma.mean(context_means(scores), axis=-1))
+    means = context_means(scores)
+    mean = np.ma.mean if np.ma.isMaskedArray(means) else np.mean
+    return _value(mean(means, axis=-1))
 
 
 def aggregate_median(scores) -> float:
@@ -132,8 +136,12 @@ def probability_of_improvement(scores_x, scores_y) -> float:
     x, y = as_scores(scores_x, "scores_x"), as_scores(scores_y, "scores_y")
     if x.shape[-1] != y.shape[-1]:
         raise ValueError(f"scores_x has {x.shape[-1]} contexts but scores_y has {y.shape[-1]}")
-    pairs = ~np.ma.getmaskarray(x)[..., :, None, :] & ~np.ma.getmaskarray(y)[..., None, :, :]
     left, right = np.ma.getdata(x)[..., :, None, :], np.ma.getdata(y)[..., None, :, :]
+    if not (np.ma.isMaskedArray(x) or np.ma.isMaskedArray(y)):  # every pair exists: count them
+        wins = np.count_nonzero(left > right, axis=(-3, -2))
+        wins = wins + 0.5 * np.count_nonzero(left == right, axis=(-3, -2))
+        return _value(np.mean(wins / (x.shape[-2] * y.shape[-2]), axis=-1))
+    pairs = ~np.ma.getmaskarray(x)[..., :, None, :] & ~np.ma.getmaskarray(y)[..., None, :, :]
     wins = (((left > right) + 0.5 * (left == right)) * pairs).sum(axis=(-3, -2))
     counts = pairs.sum(axis=(-3, -2))
     if not counts.any():

@@ -149,16 +149,12 @@ def _unit(cells: pd.DataFrame) -> str:
 def design_words(scores: Mapping[str, Scores], contexts: str) -> str:
     """What the intervals of ``scores`` resample, in the words a report prints beside them."""
     units = {s.unit for s in scores.values()}
-    parts = []
-    if SEEDS in units:
-        parts.append("seeds (each with all its contexts)")
-    if RUNS in units:
-        parts.append(
-            "contexts, each with its runs" if contexts == SAMPLED else "each context's runs"
-        )
-    if contexts == SAMPLED and SEEDS in units:
-        parts.append("the test contexts")
-    return " and ".join(dict.fromkeys(parts))
+    seeds = "seeds (each with all its contexts)" if SEEDS in units else ""
+    if contexts == SAMPLED:
+        drawn = "the test contexts" + (", each with its runs" if RUNS in units else "")
+        return f"{seeds} and {drawn}" if seeds else drawn
+    runs = "each context's runs" if RUNS in units else ""
+    return " and ".join(part for part in (seeds, runs) if part)
 
 
 def score_intervals(

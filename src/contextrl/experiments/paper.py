@@ -68,7 +68,8 @@ GATE = (
 @dataclasses.dataclass(frozen=True)
 class Verdict:
     """Whether a claim holds at the budget it ran at (None: the intervals do not decide it), or,
-    where ``withheld`` says why, no verdict at all: the evidence is then shown, not judged."""
+    where ``withheld`` says why, no verdict at all: the evidence and what its intervals alone would
+    say (``holds``) are then shown, not judged."""
 
     holds: bool | None
     evidence: str
@@ -144,15 +145,17 @@ class Check:
         found = self.decide(runs, learned_.gain if learned_.returns else np.nan)
         spec = next(iter(runs.values())).spec()
         if not spec.agent_entry().trained:
-            return Verdict(None, found.evidence, f"the {spec.agent} agent does not learn")
+            return Verdict(found.holds, found.evidence, f"the {spec.agent} agent does not learn")
         evidence = f"{found.evidence}; {learned_}"
         seeds = _seeds(runs)
         if seeds < MIN_SEEDS:
-            return Verdict(None, evidence, f"{seeds} seeds, fewer than {MIN_SEEDS}")
+            return Verdict(found.holds, evidence, f"{seeds} seeds, fewer than {MIN_SEEDS}")
         failed = learned_.failed()
         if not learned_.returns or failed:
             which = ", ".join(failed) or "no agent has a training record"
-            return Verdict(None, evidence, f"the agent did not learn at this budget ({which})")
+            return Verdict(
+                found.holds, evidence, f"the agent did not learn at this budget ({which})"
+            )
         return dataclasses.replace(found, evidence=evidence)
 
 
