@@ -114,5 +114,5 @@ def test_the_environment_docs_are_up_to_date():
 
     page = Path(__file__).resolve().parents[1] / "docs" / "environments.md"
     assert page.read_text() == environments_markdown(), (
-        "docs/environments.md is stale: run `contextrl docs` and commit the result"
+        "docs/environments.md is stale: run `contextrl docs --out docs/environments.md`"
     )

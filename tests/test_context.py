@@ -102,13 +102,22 @@ def test_array_dict_and_gymnasium_round_trips(cartpole):
         space.from_array(jnp.zeros((5, 3)))
 
 
-def test_feature_declaration_errors():
-    with pytest.raises(ValueError, match="must lie inside finite bounds"):
-        feature(5.0, 0.0, 1.0)
-    with pytest.raises(ValueError, match="must lie inside finite bounds"):
-        feature(1.0, 0.0, math.inf)
-    with pytest.raises(ValueError, match="affects must be a non-empty subset"):
-        feature(0.5, 0.0, 1.0, affects=("colour",))
+@pytest.mark.parametrize(
+    ("declared", "message"),
+    [
+        (lambda: feature(5.0, 0.0, 1.0), "default 5.0 must lie inside finite bounds"),
+        (lambda: feature(1.0, 0.0, math.inf), "must lie inside finite bounds"),
+        (lambda: feature(0.5, 0.0, 1.0, affects=("colour",)), "affects must be a non-empty"),
+        (lambda: feature("big", 0, 0, kind="categorical", choices=("small",)), "the choices"),
+    ],
+)
+def test_feature_declaration_errors_name_the_feature(declared, message):
+    """A declaration is checked when its context type is made, where the feature has its name."""
+    with pytest.raises(ValueError, match=f"feature 'width' of Bad: {message}"):
+
+        @context_type
+        class Bad(ContextBase):
+            width: float = declared()
 
 
 # ---- distributions and sampling ---------------------------------------------------------------

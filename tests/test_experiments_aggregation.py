@@ -7,12 +7,12 @@ Hand computations in each test; IQM = the mean of the middle 50 % of all run × 
 floor(n/4) values cut from each end.
 """
 
-import html.parser
 import re
 
 import numpy as np
 import pandas as pd
 import pytest
+from report_tables import point, read_sections, row  # tests/report_tables.py
 
 from contextrl.analysis import metrics, plots
 from contextrl.experiments import RunDir, expand, parse_spec, report
@@ -30,63 +30,9 @@ def unrendered(monkeypatch):
     monkeypatch.setattr(plots, "to_png", lambda figure, dpi=100: b"")
 
 
-class _Report(html.parser.HTMLParser):
-    """Sections of a report: title → {"text": [...], "warnings": [...], "tables": {caption: rows}}."""
-
-    def __init__(self, text: str):
-        super().__init__()
-        self.sections: dict[str, dict] = {}
-        self._tag, self._buffer, self._row, self._head, self._table = None, "", [], [], None
-        self.feed(text)
-
-    def handle_starttag(self, tag, attrs):
-        self._tag, self._buffer = tag, ""
-        if tag == "table":
-            self._table = {"caption": "", "rows": []}
-        if tag == "tr":
-            self._row = []
-        if tag == "p":
-            self._warning = ("class", "warning") in attrs
-
-    def handle_data(self, data):
-        self._buffer += data
-
-    def handle_endtag(self, tag):
-        text = self._buffer
-        if tag == "h2":
-            self._section = self.sections.setdefault(
-                text, {"text": [], "warnings": [], "tables": {}}
-            )
-        elif tag == "p":
-            self._section["warnings" if self._warning else "text"].append(text)
-        elif tag == "caption":
-            self._table["caption"] = text
-        elif tag in ("td", "th"):
-            self._row.append(text)
-        elif tag == "tr":
-            if self._table["rows"] or self._head:
-                self._table["rows"].append(dict(zip(self._head, self._row, strict=True)))
-            else:
-                self._head = self._row
-        elif tag == "table":
-            self._section["tables"][self._table["caption"]] = self._table["rows"]
-            self._head = []
-        self._buffer = ""
-
-
 def sections(run_or_html) -> dict[str, dict]:
     path = run_or_html if str(run_or_html).endswith(".html") else report(run_or_html)
-    return _Report(open(path, encoding="utf-8").read()).sections
-
-
-def row(table: list[dict], **match) -> dict:
-    (found,) = [r for r in table if all(r[k] == v for k, v in match.items())]
-    return found
-
-
-def point(interval: str) -> float:
-    """The point estimate of an interval cell "point [low, high]"."""
-    return float(interval.split(" [")[0])
+    return read_sections(path)
 
 
 def iqm(values) -> float:

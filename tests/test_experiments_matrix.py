@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from report_tables import check_report, read_sections  # tests/report_tables.py
 
 from contextrl.cli import main as contextrl
 
@@ -132,7 +133,7 @@ def results(out) -> pd.DataFrame:
 
 
 @pytest.mark.parametrize(("protocol", "agent", "env"), CASES, ids=["-".join(c) for c in CASES])
-def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tmp_path):
+def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tmp_path, capsys):
     if protocol == "hpo":
         pytest.importorskip("ray")
     out = tmp_path / "run"
@@ -161,6 +162,13 @@ def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tm
         ]
     html = (out / "report.html").read_text()
     assert f"<h2>{SECTIONS[protocol]}</h2>" in html
+    assert check_report(out) > 0  # every table of the report equals what the results give
+    learned = read_sections(out / "report.html").get("Did the agents learn?")
+    printed = capsys.readouterr().out
+    if learned is not None:  # the terminal says what the report's table says
+        verdicts = {r["learned"] for r in learned["tables"]["Training contexts"]}
+        assert ("yes: every kind of agent clearly beats" in printed) == (verdicts == {"yes"})
+        assert ("warning:" in printed) == (verdicts != {"yes"})
     if protocol == "hpo":
         best = yaml.safe_load((out / "best.yaml").read_text())
         schedule = pd.read_parquet(out / "curves" / "chunk-0000.parquet")

@@ -17,8 +17,8 @@ from contextrl.core.spaces import Box, Discrete
 # env methods, so the face's calls are the same for all of them (test_brax.py covers MJX's physics).
 FACE_ENVS = [
     name
-    for name in gymnax.registered_envs()
-    if crl.spec(name).family != "brax" or name == "BraxInvertedPendulum"
+    for name in gymnax.registered_envs  # a list, as gymnax's: its ids where gymnax has the env
+    if crl.spec(name.split("-v")[0]).family != "brax" or name == "BraxInvertedPendulum"
 ]
 ENV_OPTIONS = {"BraxInvertedPendulum": {"backend": "positional"}}
 
@@ -26,7 +26,7 @@ ENV_OPTIONS = {"BraxInvertedPendulum": {"backend": "positional"}}
 @pytest.mark.parametrize("env_id", FACE_ENVS)
 def test_every_jax_env_has_the_gymnax_calls(env_id):
     env, params = gymnax.make(env_id, **ENV_OPTIONS.get(env_id, {}))
-    core = crl.make(env_id, **ENV_OPTIONS.get(env_id, {}))
+    core = crl.make(env_id.split("-v")[0], **ENV_OPTIONS.get(env_id, {}))
     assert params == core.default_context()
     key = jax.random.key(0)
     obs, state = jax.jit(env.reset)(key, params)  # compiled, as gymnax's users call it
@@ -191,3 +191,12 @@ def test_without_gymnax_the_spaces_are_contextrls(monkeypatch):
     env, params = gymnax.make("CartPole")
     assert isinstance(env.observation_space(params), Box)
     assert isinstance(env.action_space(params), Discrete)
+
+
+def test_registered_envs_is_a_list_of_ids_as_gymnax_has_it():
+    """``for name in gymnax.registered_envs: gymnax.make(name)`` runs as it does on gymnax: a list
+    with gymnax's ids where gymnax has the environment (the loop above makes each of them)."""
+    assert isinstance(gymnax.registered_envs, list)
+    shared = {"CartPole-v1", "Pendulum-v1", "Acrobot-v1", "MountainCar-v0"}
+    assert shared | {"MountainCarContinuous-v0"} <= set(gymnax.registered_envs)
+    assert "CartPole" not in gymnax.registered_envs  # one id per environment

@@ -38,13 +38,15 @@ LAYERS = [
 ]
 
 # Inside experiments, the order the modules build on each other (lowest first): specs, their expansion
-# into trials, running a chunk, run directories (and where Ray's output goes in one), reports, the protocols, executors, the runner, the
-# commands around it, and the package that registers the protocols.
+# into trials, running a chunk, run directories (starting Ray, and where Ray's output goes in a run),
+# reports, the protocols, executors, the runner, the commands around it, and the package that
+# registers the protocols.
 EXPERIMENTS = [
     "spec",
     "protocols",
     "trials",
     "runs",
+    "ray_cluster",
     "ray_output",
     "analyze",
     "sensitivity",

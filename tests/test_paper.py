@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 import pytest
+from report_tables import check_report  # tests/report_tables.py
 
 from contextrl.analysis.intervals import Interval
 from contextrl.cli import main
@@ -122,7 +123,10 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     untrained, _ = run_figure(
         "baseline_mountaincar_default", "tiny", root=paper_runs, progress=False
     )
-    assert untrained.word == "no verdict" and untrained.withheld == "2 seeds, fewer than 5"
+    assert untrained.word == "no verdict"
+    assert untrained.withheld == (
+        "2 seeds, fewer than 5; the agent did not learn at this budget: hidden"
+    )
     assert "trained vs random return at the training contexts: hidden -20 vs -20" in (
         untrained.evidence
     )
@@ -131,6 +135,8 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     assert "(95% CI; each needs to lie above 30)" in gap.evidence
     exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
     assert exact.holds is True and exact.word == "holds" and "3-state cMDP: 3;" in exact.evidence
+    for name in ("tabular_cmdp", "optgap_cartpole", "baseline_mountaincar_default"):
+        assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
     assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
 

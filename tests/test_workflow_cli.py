@@ -43,6 +43,7 @@ def one_line_error(result, *fragments):
 
 
 def write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return path
 
@@ -99,7 +100,7 @@ TINY_RANDOM = ["--agent", "random", "--max-steps", "10", "--episodes", "1", "--s
         ),
         (
             ["run", "--resume", "somewhere", "--seeds", "5"],
-            {},
+            {"somewhere/spec.yaml": "protocol: visibility\n"},
             ["--resume somewhere continues the run as its spec.yaml says; --seeds cannot apply"],
         ),
         (

@@ -7,7 +7,7 @@ id, CARL name, spaces and time limit, the feature table (default, bounds, unit, 
 affects, meaning, the aliases: CARL's and the paper's names) and the coherence rules its contexts must
 satisfy, and the environment's animation when ``docs/images/<Id>.gif`` exists (``make docs-gifs`` renders
 them; see tools/render_docs_gifs.py). ``<!-- contextrl:environments -->`` becomes the summary table of every registered environment.
-The same functions write ``docs/environments.md`` (``contextrl docs``).
+The same functions write ``docs/environments.md`` (``contextrl docs --out docs/environments.md``).
 
 ``<!-- contextrl:config MODULE.CLASS -->`` becomes a table of a config dataclass: each field, its
 default and the docstring written under it in the source, so the agents page lists every

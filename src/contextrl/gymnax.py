@@ -131,6 +131,14 @@ def make(env_id: str, **kwargs: Any) -> tuple[Environment, Any]:
     return env, env.default_params
 
 
-def registered_envs() -> list[str]:
-    """The ids ``make`` accepts (JAX environments only)."""
-    return _jax_ids()
+# gymnax's ids of the environments both libraries have, spelled as gymnax spells them
+GYMNAX_IDS = {
+    "CartPole": "CartPole-v1",
+    "Pendulum": "Pendulum-v1",
+    "Acrobot": "Acrobot-v1",
+    "MountainCar": "MountainCar-v0",
+    "MountainCarContinuous": "MountainCarContinuous-v0",
+}
+# What ``make`` serves, as gymnax's ``registered_envs`` is a list: gymnax's ids where gymnax has the
+# environment, contextrl's for the other JAX environments.
+registered_envs: list[str] = [GYMNAX_IDS.get(env_id, env_id) for env_id in _jax_ids()]

@@ -59,7 +59,8 @@ class AgentConfig:
     """Print a progress line every this many metrics rows (0: silent)."""
 
     def __post_init__(self):
-        object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+        if isinstance(self.hidden_sizes, (list, tuple)):  # anything else is refused by validate
+            object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
 
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""

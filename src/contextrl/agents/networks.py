@@ -186,11 +186,12 @@ def check_fraction(name: str, value: Any, *, include_one: bool = True) -> None:
 
 
 def check_hidden_sizes(value: Sequence[int], activation: str) -> tuple[int, ...]:
-    if isinstance(value, int) or not all(
+    if not isinstance(value, (list, tuple)) or not all(
         isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0 for v in value
     ):
         raise ConfigError(
-            f"hidden_sizes must be a non-empty list of positive integers, got {value!r}"
+            f"hidden_sizes must be a non-empty list of positive integers (a width per layer, e.g. "
+            f"[64, 64]), got {value!r}"
         )
     if len(value) == 0:
         raise ConfigError("hidden_sizes must list at least one layer width")

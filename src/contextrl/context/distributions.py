@@ -19,12 +19,12 @@ import numpy as np
 from contextrl.context.features import ContextError, ContextSpace, Feature
 
 
-def _finite(name: str, **values: float) -> None:
+def _finite(feature: Feature, name: str, **values: float) -> None:
     for key, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-            raise ContextError(f"{name}: {key} must be a number, got {value!r}")
+            raise ContextError(f"{feature.name}: {name}: {key} must be a number, got {value!r}")
         if not math.isfinite(value):
-            raise ContextError(f"{name}: {key} must be finite, got {value!r}")
+            raise ContextError(f"{feature.name}: {name}: {key} must be finite, got {value!r}")
 
 
 def _inside(feature: Feature, low: float, high: float, what: str) -> None:
@@ -50,7 +50,7 @@ class Uniform:
     high: float
 
     def check(self, feature: Feature) -> None:
-        _finite("Uniform", low=self.low, high=self.high)
+        _finite(feature, "Uniform", low=self.low, high=self.high)
         _numeric_only(feature, "Uniform")
         if self.low > self.high:
             raise ContextError(
@@ -74,7 +74,7 @@ class LogUniform:
     high: float
 
     def check(self, feature: Feature) -> None:
-        _finite("LogUniform", low=self.low, high=self.high)
+        _finite(feature, "LogUniform", low=self.low, high=self.high)
         _numeric_only(feature, "LogUniform")
         if not 0 < self.low <= self.high:
             raise ContextError(
@@ -103,12 +103,12 @@ class Normal:
         return low, high
 
     def check(self, feature: Feature) -> None:
-        _finite("Normal", mean=self.mean, std=self.std)
+        _finite(feature, "Normal", mean=self.mean, std=self.std)
         _numeric_only(feature, "Normal")
         if self.std <= 0:
             raise ContextError(f"{feature.name}: Normal std must be > 0, got {self.std:g}")
         low, high = self._range(feature)
-        _finite("Normal", low=low, high=high)
+        _finite(feature, "Normal", low=low, high=high)
         if low > high:
             raise ContextError(
                 f"{feature.name}: Normal truncation range [{low:g}, {high:g}] is empty"
@@ -182,7 +182,7 @@ class Scaled:
     magnitude: float
 
     def _value(self, feature: Feature) -> float:
-        _finite("Scaled", magnitude=self.magnitude)
+        _finite(feature, "Scaled", magnitude=self.magnitude)
         _numeric_only(feature, "Scaled")
         return self.magnitude * feature.default
 
@@ -202,7 +202,7 @@ class RelativeUniform:
     b: float
 
     def _absolute(self, feature: Feature) -> Uniform:
-        _finite("RelativeUniform", a=self.a, b=self.b)
+        _finite(feature, "RelativeUniform", a=self.a, b=self.b)
         _numeric_only(feature, "RelativeUniform")
         ends = sorted((self.a * feature.default, self.b * feature.default))
         return Uniform(ends[0], ends[1])

@@ -139,17 +139,13 @@ def feature(
     affects: tuple[str, ...] = ("dynamics",),
     aliases: tuple[str, ...] = (),
 ) -> Any:
-    """Declare a context feature as a dataclass field (see :func:`context_type`)."""
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
-    unknown = set(affects) - set(EFFECTS)
-    if unknown or not affects:
-        raise ValueError(f"affects must be a non-empty subset of {EFFECTS}, got {affects!r}")
+    """Declare a context feature as a dataclass field (see :func:`context_type`, which checks the
+    declaration once the feature has its name)."""
     if kind == "categorical":
+        if isinstance(default, str) and default not in choices:
+            default = -1  # refused by the check, with the choices named
         default = choices.index(default) if isinstance(default, str) else int(default)
         lower, upper = 0, len(choices) - 1
-    if not (math.isfinite(lower) and math.isfinite(upper) and lower <= default <= upper):
-        raise ValueError(f"default {default!r} must lie inside finite bounds [{lower}, {upper}]")
     spec = dict(
         default=default,
         lower=lower,
@@ -162,6 +158,22 @@ def feature(
         aliases=tuple(aliases),
     )
     return dataclasses.field(default=default, metadata={"feature": spec})
+
+
+def _check_declaration(spec: dict) -> None:
+    """What a feature declaration must satisfy: a known kind and effects, finite bounds around
+    its default."""
+    kind, affects = spec["kind"], spec["affects"]
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    unknown = set(affects) - set(EFFECTS)
+    if unknown or not affects:
+        raise ValueError(f"affects must be a non-empty subset of {EFFECTS}, got {affects!r}")
+    default, lower, upper = spec["default"], spec["lower"], spec["upper"]
+    if kind == "categorical" and not 0 <= default < len(spec["choices"]):
+        raise ValueError(f"the default must be one of the choices {list(spec['choices'])}")
+    if not (math.isfinite(lower) and math.isfinite(upper) and lower <= default <= upper):
+        raise ValueError(f"default {default!r} must lie inside finite bounds [{lower}, {upper}]")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,7 +235,12 @@ def context_type(cls):
     for field in dataclasses.fields(data_cls):
         if "feature" not in field.metadata:
             raise TypeError(f"{cls.__name__}.{field.name} must be declared with feature(...)")
-        features.append(Feature(name=field.name, **field.metadata["feature"]))
+        spec = field.metadata["feature"]
+        try:
+            _check_declaration(spec)
+        except ValueError as error:
+            raise ValueError(f"feature {field.name!r} of {data_cls.__name__}: {error}") from None
+        features.append(Feature(name=field.name, **spec))
     jax.tree_util.register_dataclass(
         data_cls, data_fields=[f.name for f in features], meta_fields=[]
     )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import re
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -17,6 +18,23 @@ class EnvSpec:
     factory: Callable[..., Any]
     aliases: tuple[str, ...] = ()
     host: bool = False  # True for environments stepped on the CPU outside JAX (Box2D, MuJoCo, …)
+
+    def build(self, **kwargs: Any):
+        """The environment, built with ``kwargs``; an argument its constructor does not take is
+        refused in one line (``context=`` points at ``contexts=``)."""
+        try:
+            return self.factory(**kwargs)
+        except TypeError as error:
+            unknown = re.search(r"unexpected keyword argument '(\w+)'", str(error))
+            if unknown is None or unknown.group(1) not in kwargs:  # not the caller's argument
+                raise
+        name = unknown.group(1)
+        hint = (
+            "; a context is given as contexts= (a dict, a list of them, or distributions)"
+            if name == "context"
+            else ""
+        )
+        raise ValueError(f"{self.id}: unknown argument {name!r}{hint}") from None
 
 
 _REGISTRY: dict[str, EnvSpec] = {}
@@ -76,7 +94,7 @@ def make(
     observation), "all", "varying" (needs ``contexts``, the features that differ across that set), or a
     list of names. Other keyword arguments (``max_steps``, family options) go to the constructor.
     """
-    env = spec(id).factory(**kwargs)
+    env = spec(id).build(**kwargs)
     if obs_context_features is not None or obs_context_noise or obs_context_normalize:
         env = env.with_obs_context(
             obs_context_features,

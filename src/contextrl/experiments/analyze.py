@@ -440,6 +440,18 @@ def per_context_table(cells: pd.DataFrame) -> pd.DataFrame:
     return table.iloc[order].reset_index(drop=True)
 
 
+def per_context_wide(table: pd.DataFrame) -> pd.DataFrame:
+    """The per-context table (:func:`per_context_table`) with one row per evaluated context and a
+    mean-return column per agent, the contexts in the table's order: easy to read across (the CSV
+    has spreads and seeds). Only contexts some agent was evaluated on appear."""
+    keys = [c for c in table.columns if c not in ("agent", "mean_return", "std_return", "seeds")]
+    wide = table[keys].drop_duplicates().reset_index(drop=True)
+    for agent in sorted(table["agent"].unique(), key=natural_key):
+        mine = table.loc[table["agent"] == agent, [*keys, "mean_return"]]
+        wide = wide.merge(mine.rename(columns={"mean_return": agent}), on=keys, how="left")
+    return wide
+
+
 def _binned(x: np.ndarray, bins: int = 12) -> np.ndarray:
     """Each value's bin centre: the values themselves when there are few, else equal-width bins."""
     unique = np.unique(x)
@@ -547,12 +559,7 @@ def per_context_section(
                     f"Mean test return over the {x_name} × {y_name} plane, {label}",
                 )
             )
-    # one row per context, a column per agent: easy to read across; the CSV has spreads and seeds
-    keys = [c for c in table.columns if c not in ("agent", "mean_return", "std_return", "seeds")]
-    wide = table.pivot_table(
-        index=keys, columns="agent", values="mean_return", sort=False, dropna=False
-    )
-    wide = wide[sorted(wide.columns, key=natural_key)].reset_index()
+    wide = per_context_wide(table)
     shown = wide.head(PER_CONTEXT_ROWS).to_dict("records")
     more = len(wide) - len(shown)
     caption = "Mean return per context and agent (over seeds)" + (

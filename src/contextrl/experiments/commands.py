@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from contextrl.agents import registered_agents
+from contextrl.agents import get_agent, registered_agents
 from contextrl.experiments.analyze import learning_verdict
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.executors import EXECUTORS, connect
@@ -25,6 +25,7 @@ from contextrl.experiments.paper import (
     PAPER_RUNS,
     SCALES,
     figure_rows,
+    kept_runs,
     results_page,
     run_figure,
 )
@@ -77,6 +78,15 @@ def count(text: str) -> int:
     return int(value)
 
 
+def positive(text: str) -> int:
+    """A :func:`count` of at least 1 (a number of chunks: 0 or fewer would run nothing, or all but
+    the last)."""
+    value = count(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return value
+
+
 def _load_yaml_file(path: str, option: str) -> Any:
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -122,13 +132,26 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
         "eval_episodes": args.episodes,
         "max_steps": args.max_steps,
     }
+    written_for = data.get("agent", "ppo")  # the agent the preset's or config's options are for
     data.update({k: v for k, v in simple.items() if v is not None})
-    if args.variants:
+    if args.variants is not None:
         data["variants"] = args.variants.split(",")
     options = data.get("agent_options") or {}
     if not isinstance(options, Mapping):
         raise SpecError(agent_options_error(options))
     options = dict(options)
+    if args.agent is not None and args.agent != written_for and options:
+        if notices is not None:
+            notices.append(
+                f"note: the spec's agent_options were written for {written_for}, so --agent "
+                f"{args.agent} trains without them: {options}"
+            )
+        options = {}
+    if args.timesteps is not None and not get_agent(data.get("agent", "ppo")).trained:
+        raise SpecError(
+            f"--timesteps {args.timesteps}: the {data.get('agent')} agent does not train; "
+            "leave --timesteps out"
+        )
     if args.agent_config:
         loaded = _load_yaml_file(args.agent_config, "--agent-config")
         if not isinstance(loaded, dict):
@@ -140,6 +163,7 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
     if args.timesteps is not None:
         options["total_timesteps"] = args.timesteps
     options.update(parse_assignments(args.agent_option, "--agent-option"))
+    data.pop("agent_options", None)
     if options:
         data["agent_options"] = options
     if args.vary:
@@ -248,7 +272,27 @@ def _check_new_run(spec, args) -> None:
         raise _unwritable(args, "Permission denied", parent)
 
 
+def _refuse_conflicts(args: argparse.Namespace) -> None:
+    """Flags that cannot both apply, refused rather than one of them ignored."""
+    if args.quiet and args.verbose:
+        raise SpecError(
+            "--quiet and --verbose: give one (quiet: no progress lines; verbose: Ray's)"
+        )
+    if args.out and args.root != "runs":
+        raise SpecError(
+            f"--out {args.out} names the run directory, so --root {args.root} would be ignored; "
+            "give one of them"
+        )
+    if args.resume and not (Path(args.resume) / "spec.yaml").is_file():
+        what = "no run directory" if Path(args.resume).is_dir() else "no such folder"
+        raise SpecError(
+            f"--resume {args.resume}: {what} (a run directory holds spec.yaml); "
+            "give the folder `contextrl run` printed"
+        )
+
+
 def run_command(args: argparse.Namespace) -> int:
+    _refuse_conflicts(args)
     progress = not args.quiet
     interrupt = _Interrupt()
     try:
@@ -372,7 +416,7 @@ def add_run(subparsers) -> None:
         "--address", help="Ray cluster address for --executor ray and hpo (default: a local Ray)"
     )
     parser.add_argument(
-        "--max-chunks", type=count, help="stop after this many chunks (resume later)"
+        "--max-chunks", type=positive, help="stop after this many chunks (resume later)"
     )
     parser.add_argument(
         "--quiet",
@@ -485,6 +529,14 @@ def add_eval(subparsers) -> None:
 
 
 def paper_command(args: argparse.Namespace) -> int:
+    if args.action == "run" and args.figure is None:
+        raise SpecError(
+            f"paper run: name a figure (contextrl paper run FIGURE); choose one of {list(FIGURES)}"
+        )
+    if args.action != "run" and args.figure is not None:
+        raise SpecError(f"paper {args.action}: takes no figure (got {args.figure!r}); run does")
+    if args.runs is None:  # run writes under ./results/paper; list and page read the kept runs
+        args.runs = PAPER_RUNS if args.action == "run" else kept_runs()
     if args.action == "list":
         for row in figure_rows(args.runs):
             print(f"{row.pop('figure')}  ({row.pop('paper')})\n  claim: {row.pop('claim')}")
@@ -512,7 +564,11 @@ def paper_command(args: argparse.Namespace) -> int:
         batch_size=args.batch_size,
         progress=not args.quiet,
     )
-    print(f"{args.figure} ({args.scale} budget): the claim {verdict.word}. {verdict.evidence}.")
+    withheld = f" ({verdict.withheld})" if verdict.withheld else ""
+    print(
+        f"{args.figure} ({args.scale} budget): the claim {verdict.word}{withheld}. "
+        f"{verdict.evidence}."
+    )
     print(f"report: {path}")
     return 0
 
@@ -536,8 +592,8 @@ def add_paper(subparsers) -> None:
     )
     parser.add_argument(
         "--runs",
-        default=PAPER_RUNS,
-        help=f"folder of the figures' runs ({PAPER_RUNS}): run writes, list and page read",
+        help=f"folder of the figures' runs: run writes (default ./{PAPER_RUNS}), list and page "
+        f"read (default ./{PAPER_RUNS}, else the repository's)",
     )
     parser.add_argument("--out", default="docs/paper.md", help="with page: the file (- prints)")
     parser.add_argument("--executor", choices=list(EXECUTORS), default="local")

@@ -3,9 +3,10 @@
 ``local`` trains chunk after chunk in this process (each chunk one vmapped, compiled call).
 ``processes`` runs one worker process per CPU core on this machine, each training whole chunks, so every
 core is busy with its own chunk instead of sharing small operations with the others. ``ray``
-sends chunks to a Ray cluster (``address``: an existing cluster, or None to start a local one); the
-workers rebuild the plan from the spec, so only the spec and a chunk index travel. Either way a chunk
-that raises is recorded with its error and traceback and the run goes on.
+sends chunks to a Ray cluster (``address``: an existing cluster, or None to start a local one that
+listens on 127.0.0.1 only: :mod:`~contextrl.experiments.ray_cluster`); the workers rebuild the plan
+from the spec, so only the spec and a chunk index travel. Either way a chunk that raises is recorded with its error and
+traceback and the run goes on.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from tqdm import tqdm
 
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.protocols import Plan, expand
+from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import SpecError, parse_spec, spec_to_dict
@@ -372,7 +374,7 @@ def connect(
     started = io.StringIO()
     try:
         with contextlib.nullcontext() if verbose else ray_output_to(started):
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            start_ray(address)
     except ConnectionError as error:
         where = f"--address {address}" if address else "a local Ray cluster"
         reason = str(error).split(". ")[0]
@@ -428,7 +430,7 @@ def run_ray(
     import ray  # optional and slow to import: only a Ray run loads it
 
     if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        start_ray(address)
     remote = ray.remote(num_cpus=cpus_per_chunk, max_retries=0)(_remote_chunk)
     spec_data = spec_to_dict(plan.spec)
 

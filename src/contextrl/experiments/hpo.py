@@ -33,9 +33,11 @@ from contextrl.analysis.report import Section
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.analyze import figure, score_matrices
 from contextrl.experiments.protocols import TEST_KEY, train_and_test_sets
+from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
+    MAX_INT32,
     CommonSpec,
     SpecError,
     _check_int,
@@ -99,7 +101,7 @@ class HPOSpec(CommonSpec):
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):
             _check_int(field, getattr(self, field), 1)
-        _check_int("steps_per_round", self.steps_per_round, 1)
+        _check_int("steps_per_round", self.steps_per_round, 1, MAX_INT32)
         if "total_timesteps" in self.agent_options:
             raise SpecError(
                 "agent_options.total_timesteps: hpo trains each member for rounds × steps_per_round "
@@ -421,7 +423,7 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
     log.parent.mkdir(parents=True, exist_ok=True)
     with open(log, "a") as stream, contextlib.nullcontext() if verbose else ray_output_to(stream):
         if not ray.is_initialized():
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            start_ray(address)
         tuner = tune.Tuner(
             tune.with_resources(_trainable, {"cpu": 1}),
             param_space={

@@ -22,7 +22,13 @@ from contextrl.experiments.analyze import (
     training_figure,
 )
 from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
-from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
+from contextrl.experiments.spec import (
+    MAX_COUNT,
+    CommonSpec,
+    SpecError,
+    _check_int,
+    register_protocol,
+)
 
 
 @register_protocol
@@ -39,6 +45,12 @@ class OptimalityGapSpec(CommonSpec):
     def validate(self) -> None:
         super().validate()
         _check_int("num_contexts", self.num_contexts, 1)
+        agents = self.seeds * len(self.variants) * (self.num_contexts + 1)
+        if agents > MAX_COUNT:
+            raise SpecError(
+                f"num_contexts: {self.num_contexts:,} specialists and a general agent per seed "
+                f"and variant make {agents:,} agents to train; at most {MAX_COUNT:,}"
+            )
         self.resolve_features("train", self.train)
 
     def expand(self) -> tuple[dict, list]:

@@ -50,6 +50,21 @@ from contextrl.experiments.train_test import REGIONS
 SPEC_FOLDER = Path(__file__).resolve().parents[1] / "paper"
 SCALES = ("paper", "small", "tiny")
 PAPER_RUNS = "results/paper"
+# The repository's kept runs, where the package is installed from a checkout (editable)
+REPOSITORY_RUNS = SPEC_FOLDER.parents[2] / PAPER_RUNS
+
+
+def kept_runs() -> Path:
+    """Where ``contextrl paper list|page`` reads runs when not told: ./results/paper, else the
+    repository's (a checkout the package is installed from); refused, saying where it looked,
+    when neither holds runs."""
+    for folder in (Path(PAPER_RUNS), REPOSITORY_RUNS):
+        if any(folder.glob("*/*/spec.yaml")):
+            return folder
+    raise SpecError(
+        f"contextrl paper: no runs in ./{PAPER_RUNS} or {REPOSITORY_RUNS}; give --runs FOLDER "
+        "(the repository keeps its runs in results/paper; contextrl paper run writes new ones)"
+    )
 
 
 # The decision rules, fixed before any run. A verdict needs this many seeds (the unit of replication)
@@ -106,14 +121,10 @@ class Learning:
 def learning(runs: Mapping[str, RunDir]) -> Learning:
     """Per variant and agent kind over the figure's runs, the trained and the random policy's mean
     return on the training contexts (what the run's "Did the agents learn?" section shows)."""
-    frames = [run.training() for run in runs.values()]
-    frame = (
-        pd.concat([f for f in frames if not f.empty], ignore_index=True)
-        if any(not f.empty for f in frames)
-        else pd.DataFrame()
-    )
-    if frame.empty:
+    frames = [frame for frame in (run.training() for run in runs.values()) if not frame.empty]
+    if not frames:
         return Learning({})
+    frame = pd.concat(frames, ignore_index=True)
     several_kinds = frame["kind"].nunique() > 1
     returns = {}
     for (variant, kind), group in frame.groupby(["variant", "kind"], sort=False):
@@ -123,7 +134,9 @@ def learning(runs: Mapping[str, RunDir]) -> Learning:
 
 
 def _seeds(runs: Mapping[str, RunDir]) -> int:
-    return min(run.spec().seeds for run in runs.values())
+    """The fewest independently trained seeds among the runs' results (a PB2 run: its one best
+    member)."""
+    return min(int(run.results()["seed"].nunique()) for run in runs.values())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,16 +160,15 @@ class Check:
         if not spec.agent_entry().trained:
             return Verdict(found.holds, found.evidence, f"the {spec.agent} agent does not learn")
         evidence = f"{found.evidence}; {learned_}"
+        reasons = []
         seeds = _seeds(runs)
         if seeds < MIN_SEEDS:
-            return Verdict(found.holds, evidence, f"{seeds} seeds, fewer than {MIN_SEEDS}")
+            reasons.append(f"{seeds} seeds, fewer than {MIN_SEEDS}")
         failed = learned_.failed()
         if not learned_.returns or failed:
             which = ", ".join(failed) or "no agent has a training record"
-            return Verdict(
-                found.holds, evidence, f"the agent did not learn at this budget ({which})"
-            )
-        return dataclasses.replace(found, evidence=evidence)
+            reasons.append(f"the agent did not learn at this budget: {which}")
+        return Verdict(found.holds, evidence, "; ".join(reasons))
 
 
 def _decide(interval: Interval, above: float = 0.0) -> bool | None:

@@ -252,12 +252,12 @@ class CommonSpec:
 
     def validate(self) -> None:
         _check_int("seeds", self.seeds, 1)
-        _check_int("seed", self.seed, 0)
+        _check_int("seed", self.seed, 0, 2**32 - 1)
         _check_int("eval_episodes", self.eval_episodes, 1)
         _check_int("batch_size", self.batch_size, 1)
         _check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
-            _check_int("max_steps", self.max_steps, 1)
+            _check_int("max_steps", self.max_steps, 1, MAX_INT32)
         self._refuse_unused(self.unused_fields)
         if not self.trains_agents:
             return
@@ -432,9 +432,17 @@ def agent_options_error(value: Any) -> str:
     )
 
 
-def _check_int(field: str, value: Any, minimum: int) -> int:
+# The most of anything a plan counts (seeds, contexts, episodes, replicates): a plan is expanded in
+# memory, so a count beyond any real run is refused before it is, not after it fills the memory.
+MAX_COUNT = 1_000_000
+MAX_INT32 = 2**31 - 1  # step counters are int32 inside the compiled programs
+
+
+def _check_int(field: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise SpecError(f"{field}: expected an integer >= {minimum}, got {value!r}")
+    if value > maximum:
+        raise SpecError(f"{field}: expected an integer <= {maximum:,}, got {value:,}")
     return value
 
 
@@ -463,6 +471,14 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
     if unknown:
         raise SpecError(
             f"unknown field(s) {unknown} for protocol {protocol}; valid: {sorted(fields)}"
+        )
+    for name in ("env", "agent", "name"):  # names the plan looks up or builds folders from
+        value = data.get(name)
+        if value is not None and not isinstance(value, str):
+            raise SpecError(f"{name}: expected a name (a string), got {value!r}")
+    if not re.fullmatch(r"[A-Za-z0-9._-]*", data.get("name") or ""):
+        raise SpecError(
+            f"name: {data['name']!r} names the run's folder; use letters, digits, '.', '_' and '-'"
         )
     hints = typing.get_type_hints(cls)
     values = {}

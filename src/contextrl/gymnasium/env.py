@@ -36,8 +36,8 @@ def build_env(
     if isinstance(env_id, str):
         env_spec = spec(env_id)
         if env_spec.host:
-            return env_spec.factory(**env_kwargs)
-        return env_spec.factory(max_steps=max_steps, **env_kwargs)
+            return env_spec.build(**env_kwargs)
+        return env_spec.build(max_steps=max_steps, **env_kwargs)
     if env_kwargs:
         raise TypeError(f"unexpected arguments for an environment object: {sorted(env_kwargs)}")
     if isinstance(env_id, Env):
@@ -350,7 +350,12 @@ def reset_override(schedule: ContextSchedule, options: Mapping[str, Any]) -> tup
             )
         return np.asarray(space.to_array(context), np.float32), -1
     context_id = options["context_id"]
-    if schedule.resamples or context_id not in schedule.ids:
+    if schedule.resamples:
+        raise ContextError(
+            f"options['context_id']={context_id!r}: the contexts are drawn from a distribution at "
+            "every reset, so there are no ids; give options['context'] (a dict of feature values)"
+        )
+    if context_id not in schedule.ids:
         raise ContextError(
             f"options['context_id']={context_id!r} is not an id of the context set "
             f"{list(schedule.ids)}"

@@ -94,7 +94,7 @@ class CARLEnv(gymnasium.Wrapper):
         self.observation_space = gymnasium.spaces.Dict(
             {"obs": self.base_observation_space, "context": self._context_space()}
         )
-        self.context: Context | None = None
+        self._context: Context | None = None
         self._context_id: Any = None
         self._next_id: Any = None
 
@@ -202,6 +202,19 @@ class CARLEnv(gymnasium.Wrapper):
         self._next_id = None
 
     @property
+    def context(self) -> Context | None:
+        """The current episode's context, every feature filled in (None before the first reset)."""
+        return self._context
+
+    @context.setter
+    def context(self, context: Context) -> None:
+        """Checked as every context is (an unknown feature, a value outside its bounds or of the
+        wrong type refused, naming it) and filled with defaults. As in CARL, the next reset picks
+        from ``contexts``: to run this context, set ``contexts = {0: context}`` or reset with
+        ``options={"context": context}``."""
+        self._context = self._fill({0: context})[0]
+
+    @property
     def context_id(self) -> Any:
         """The key in ``contexts`` of the current episode's context (None before the first reset)."""
         return self._context_id
@@ -231,7 +244,7 @@ class CARLEnv(gymnasium.Wrapper):
                 options["context_id"] = chosen
         obs, info = self.env.reset(seed=seed, options=options or None)
         self._context_id = info["context_id"]
-        self.context = info["context"]
+        self._context = info["context"]
         if not asked and self._context_id in self.contexts:
             self.context_selector.record(self._context_id)
         return self._observation(obs), info
