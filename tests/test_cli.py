@@ -107,12 +107,17 @@ def test_assignment_parsing():
         parse_assignments(["length"])
 
 
-def test_the_environment_docs_are_up_to_date():
+def test_the_environment_docs_and_index_are_up_to_date():
+    """docs/environments.md and the index `contextrl list` reads are what the environments give."""
+    import json
     from pathlib import Path
 
-    from contextrl.cli import environments_markdown
+    from contextrl.cli import ENVIRONMENT_INDEX, environment_rows, environments_markdown
 
+    rows = environment_rows(build=True)
     page = Path(__file__).resolve().parents[1] / "docs" / "environments.md"
-    assert page.read_text() == environments_markdown(), (
+    assert page.read_text() == environments_markdown(rows), (
         "docs/environments.md is stale: run `contextrl docs --out docs/environments.md`"
     )
+    index = json.loads(ENVIRONMENT_INDEX.read_text(encoding="utf-8"))
+    assert list(index.values()) == rows, "run tools/write_environment_index.py"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,31 +31,40 @@ def _space_label(space: Any) -> str:
     return f"Box({'×'.join(str(d) for d in space.shape)})"
 
 
-def environment_rows(family: str | None = None) -> list[dict[str, Any]]:
-    """One summary row per registered environment, or per one of ``family`` (builds each once to
-    read its spaces, so a family's list does not wait for the others to build)."""
-    rows = []
-    for env_id in crl.registered(family):
-        env_spec = crl.spec(env_id)
-        env = env_spec.factory()
-        features = env.context_space.features.values()
-        rows.append(
-            {
-                "id": env_id,
-                "family": env_spec.family,
-                "kind": "host" if env_spec.host else "jax",
-                "action": _space_label(env.action_space),
-                "obs": int(np.prod(env.base_observation_space.shape)),
-                "features": len(env.context_space),
-                "dynamics": sum("dynamics" in f.affects for f in features),
-                "reward": sum("reward" in f.affects for f in features),
-                "max_steps": env.default_max_steps,
-            }
-        )
-        close = getattr(env, "close", None)
-        if env_spec.host and close is not None:
-            close()
-    return rows
+# The rows of the registered environments, written by tools/write_environment_index.py and tested
+# to equal what building each environment gives: `contextrl list` reads them instead of building
+# every simulator (seconds each for MuJoCo's and Brax's).
+ENVIRONMENT_INDEX = Path(__file__).parent / "environments.json"
+
+
+def environment_row(env_id: str) -> dict[str, Any]:
+    """The summary row of one environment, read from the environment itself (built once)."""
+    env_spec = crl.spec(env_id)
+    env = env_spec.factory()
+    features = env.context_space.features.values()
+    row = {
+        "id": env_spec.id,
+        "family": env_spec.family,
+        "kind": "host" if env_spec.host else "jax",
+        "action": _space_label(env.action_space),
+        "obs": int(np.prod(env.base_observation_space.shape)),
+        "features": len(env.context_space),
+        "dynamics": sum("dynamics" in f.affects for f in features),
+        "reward": sum("reward" in f.affects for f in features),
+        "max_steps": env.default_max_steps,
+    }
+    close = getattr(env, "close", None)
+    if env_spec.host and close is not None:
+        close()
+    return row
+
+
+def environment_rows(family: str | None = None, *, build: bool = False) -> list[dict[str, Any]]:
+    """One summary row per registered environment, or per one of ``family``: from the index
+    written with the package, an environment it lacks (one a user registered) built to read its
+    spaces; ``build``: every one built."""
+    index = {} if build else json.loads(ENVIRONMENT_INDEX.read_text(encoding="utf-8"))
+    return [index.get(env_id) or environment_row(env_id) for env_id in crl.registered(family)]
 
 
 def feature_rows(space: ContextSpace) -> list[dict[str, str]]:
@@ -106,8 +116,9 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def environments_markdown() -> str:
-    """The docs page: every environment and its feature table, generated from the declarations."""
+def environments_markdown(rows: Sequence[dict[str, Any]] | None = None) -> str:
+    """The docs page: every environment and its feature table, generated from the declarations
+    (``rows``: the summary rows, when already built)."""
     parts = [
         "# Environments and context features",
         "",
@@ -115,7 +126,7 @@ def environments_markdown() -> str:
         "do not edit by hand.",
         "`dynamics` / `reward` count the features that change the dynamics / the reward.",
         "",
-        markdown_table(environment_rows()),
+        markdown_table(environment_rows(build=True) if rows is None else rows),
     ]
     for env_id in crl.registered():
         env = crl.spec(env_id).factory()
@@ -382,7 +393,13 @@ def add_render(subparsers) -> None:
     parser.set_defaults(handler=run_render)
 
 
-def build_parser() -> argparse.ArgumentParser:
+# Subcommands that need no experiment layer: their parser is built without it (a second of
+# importing pandas and matplotlib that `contextrl list` does not pay).
+CORE_COMMANDS = ("list", "describe", "docs", "render", "cache")
+
+
+def build_parser(experiments: bool = True) -> argparse.ArgumentParser:
+    """The command's parser; ``experiments``: with run, report, eval and paper too."""
     parser = argparse.ArgumentParser(
         prog="contextrl", description="Contextual reinforcement learning environments and tools."
     )
@@ -396,7 +413,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_docs(subparsers)
     add_render(subparsers)
     add_cache(subparsers)
-    # imported here: the experiment layer loads pandas and matplotlib, which `list` does not need
+    if not experiments:
+        return parser
     from contextrl.experiments.commands import add_eval, add_paper, add_report, add_run
 
     add_run(subparsers)
@@ -426,7 +444,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     use_compilation_cache()  # a second run of the same spec loads what the first compiled
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
-    args = build_parser().parse_args([a for a in argv if a != "--debug"])
+    argv = [a for a in argv if a != "--debug"]
+    command = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(experiments=command not in CORE_COMMANDS).parse_args(argv)
     try:
         return args.handler(args)
     except KeyboardInterrupt:

@@ -31,7 +31,6 @@ import hashlib
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-import scipy.stats
 
 from contextrl.analysis.metrics import as_scores
 
@@ -105,6 +104,8 @@ def replication(
 def tail_probability(confidence: float, n: int, df: int) -> float:
     """The percentile at each end of Hesterberg's expanded percentile interval (α/2 where n < 2
     or df < 1: there is no spread to widen)."""
+    import scipy.stats  # a second to import: only a bootstrap needs it
+
     alpha = 1.0 - confidence
     if n < 2 or df < 1:
         return alpha / 2.0
