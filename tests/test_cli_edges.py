@@ -1,4 +1,4 @@
-"""The sharp edges a new user hits on the command line (issue 25, points 2, 3, 5, 8, 9): protocol
+"""The sharp edges a new user hits on the command line: protocol
 defaults that fit the environment, ``report`` refusing runs that do not share an axis, the learned-or-
 warn verdict in the terminal, messages that say what was expected, ``--version`` / ``python -m
 contextrl``, one-seed intervals said as such, and third-party noise kept out of the terminal.
@@ -59,7 +59,7 @@ def python(*argv, cwd) -> subprocess.CompletedProcess:
     )
 
 
-# ---- 2: protocol defaults come from the environment ---------------------------------------------
+# ---- protocol defaults come from the environment ---------------------------------------------
 DRY = ["--dry-run", "--no-calibration"]
 
 
@@ -87,7 +87,7 @@ def test_an_environment_without_a_default_needs_vary(capsys):
     )
 
 
-# ---- 3: report refuses runs that do not share an axis (or overlays them labelled) ----------------
+# ---- report refuses runs that do not share an axis (or overlays them labelled) ----------------
 def constructed_run(tmp_path, name: str, env: str, train: dict, seeds: int = 2) -> RunDir:
     """A visibility run folder with a results table written as a run writes it (no training)."""
     spec = parse_spec(
@@ -133,7 +133,7 @@ def test_report_refuses_runs_of_different_features(tmp_path, capsys):
     one_line_error(status, err, "differ in features", "a: length", "b: gravity")
 
 
-# ---- 4: hpo's budget is rounds × steps_per_round --------------------------------------------------
+# ---- hpo's budget is rounds × steps_per_round --------------------------------------------------
 def test_hpo_refuses_timesteps_it_would_ignore(capsys, tmp_path):
     """Before: --timesteps was ignored (each member trained rounds × steps_per_round) and then written
     into best.yaml as if it had been the budget."""
@@ -145,15 +145,17 @@ def test_hpo_refuses_timesteps_it_would_ignore(capsys, tmp_path):
     assert not list(tmp_path.iterdir())  # nothing was made
 
 
-# ---- 5: the terminal ends with the report's learned-or-warn verdict -----------------------------
+# ---- the terminal ends with the report's learned-or-warn verdict -----------------------------
 @pytest.mark.parametrize(("trained", "expected"), [(0.0, "warning: "), (500.0, "learn? yes")])
 def test_run_ends_with_the_learning_verdict(trained, expected, tmp_path, capsys):
     """Before: only report.html warned that the agents did not learn; the terminal said nothing."""
     folder = tmp_path / "run"
-    base = ["--seeds", "1", "--variants", "hidden", "--quiet", "--max-chunks", "0"]
-    status, _, err = cli(capsys, "run", "visibility", "--out", folder, *base)
-    assert status == 0, err
-    plan = expand(RunDir(folder).spec())
+    spec = parse_spec({"protocol": "visibility", "seeds": 1, "variants": ["hidden"]})
+    run = RunDir.create(spec, out=str(folder))  # a run whose one chunk finished (no training)
+    plan = expand(spec)
+    trial = plan.trials[0]
+    returns = {trial.id: np.zeros(len(plan.sets[trial.test_set]))}
+    write_parquet(run.result_path(0), result_rows(spec, returns))
     training = pd.DataFrame(
         {
             "trial": [t.id for t in plan.trials],
@@ -165,16 +167,16 @@ def test_run_ends_with_the_learning_verdict(trained, expected, tmp_path, capsys)
         }
     )
     write_parquet(folder / "training" / "chunk-0000.parquet", training)
-    status, out, err = cli(capsys, "run", "--resume", folder, "--max-chunks", "0", "--quiet")
+    status, out, err = cli(capsys, "run", "--resume", folder, "--quiet")
     assert status == 0, err
-    assert expected in out.strip().splitlines()[-2]  # then "N chunk(s) left; continue with …"
+    assert expected in out.strip().splitlines()[-1]
     status, out, err = cli(capsys, "report", folder)
     assert status == 0 and expected in out.strip().splitlines()[-1], err
     if trained == 0.0:
         assert "do not clearly beat a random policy" in out
 
 
-# ---- 8: messages say what was expected, with an example -----------------------------------------
+# ---- messages say what was expected, with an example -----------------------------------------
 def test_a_number_on_the_command_line_is_a_number(capsys):
     """Before: ``--vary length=0.5`` → "expected a number, got str ('0.5')"."""
     assert parse_distribution("length", "0.5") == Constant(0.5)
@@ -222,7 +224,7 @@ def test_out_at_an_existing_file_says_it_wants_a_folder(tmp_path, capsys):
     """Before: "[Errno 17] File exists"."""
     taken = tmp_path / "taken"
     taken.write_text("")
-    status, _, err = cli(capsys, "run", "visibility", "--out", taken, "--max-chunks", "0")
+    status, _, err = cli(capsys, "run", "visibility", "--out", taken, *DRY)
     one_line_error(status, err, f"--out {taken}", "expected a folder", "e.g. --out")
 
 
@@ -234,7 +236,7 @@ def test_render_refuses_a_missing_folder(tmp_path, capsys):
     assert not (tmp_path / "typo").exists()
 
 
-# ---- 9: --version, python -m contextrl, one-seed intervals, third-party noise ---------------------
+# ---- --version, python -m contextrl, one-seed intervals, third-party noise ---------------------
 def test_version_and_python_dash_m(tmp_path):
     import contextrl
 

@@ -1,6 +1,7 @@
 """`contextrl run hpo`: PB2 on a local Ray tunes PPO on sampled contexts, reproducibly from the seed;
 the best configuration feeds another protocol through --agent-config."""
 
+import argparse
 import contextlib
 import io
 import json
@@ -14,6 +15,7 @@ import pytest
 import yaml
 
 from contextrl.experiments import SpecError, parse_spec
+from contextrl.experiments.commands import add_run, spec_from_args
 from contextrl.experiments.commands import main as commands_main
 
 BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
@@ -190,13 +192,11 @@ def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_
     # The summary says what was trained: the population, not the spec's unused seed count.
     assert "a population of 2 members, 3 rounds of 256 steps each (base seed 7)" in html
     assert "3 seeds" not in html
-    # the best configuration as the agent of another protocol
-    other = tmp_path / "visibility"
-    argv = ["run", "visibility", "--agent-config", str(out / "best.yaml"), "--out", str(other)]
-    argv += ["--max-chunks", "0", "--quiet"]
-    assert commands_main(argv) == 0
-    options = yaml.safe_load((other / "spec.yaml").read_text())["agent_options"]
-    assert options == best
+    # the best configuration as the agent of another protocol: the spec `contextrl run` would run
+    parser = argparse.ArgumentParser()
+    add_run(parser.add_subparsers())
+    args = parser.parse_args(["run", "visibility", "--agent-config", str(out / "best.yaml")])
+    assert parse_spec(spec_from_args(args)).agent_options == best
 
 
 def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):

@@ -34,10 +34,8 @@ import numpy as np
 
 from contextrl.analysis.metrics import as_scores
 
-SEEDS = (
-    "seeds"  # one agent per seed tested on every context: seeds resampled with all their contexts
-)
-RUNS = "runs"  # an independent run per context and seed: each context's runs resampled alone
+SEEDS = "seeds"  # one agent per seed, tested on every context: seeds resampled whole
+RUNS = "runs"  # a run of its own per context and seed: each context's runs resampled alone
 UNITS = (SEEDS, RUNS)
 FIXED = "fixed"  # the claim is about the contexts tested
 SAMPLED = "sampled"  # the contexts are a sample from the distribution the claim is about
@@ -85,9 +83,10 @@ def replication(
     Seeds are the units wherever a sample has them (few, and shared by all their contexts): n is
     the fewest seeds of a ``SEEDS`` sample (each sample's spread is that of its own seeds) and each
     sample adds its seeds − 1 degrees of freedom (one sample: Hesterberg's n and n − 1; two: the
-    two-sample t's pooled count). Without
-    seeds, sampled contexts are the units (resampled together: n contexts, n − 1), and with fixed
-    contexts each context's runs are (n the fewest runs of a context, Σ (runs − 1))."""
+    two-sample t's pooled count). Without seeds, sampled contexts are the units (resampled
+    together: n contexts, n − 1), and with fixed contexts each context's runs are (n the fewest
+    runs of a context, Σ (runs − 1)).
+    """
     pairs = list(zip(samples, units, strict=True))
     seeds = [int((~np.ma.getmaskarray(s)).any(axis=1).sum()) for s, u in pairs if u == SEEDS]
     if seeds:
@@ -96,9 +95,8 @@ def replication(
     if contexts == SAMPLED:
         width = int(min((r > 0).sum() for r in runs))
         return width, width - 1
-    return min(int(r[r > 0].min()) for r in runs), int(
-        sum(np.maximum(r - 1, 0).sum() for r in runs)
-    )
+    fewest = min(int(r[r > 0].min()) for r in runs)
+    return fewest, int(sum(np.maximum(r - 1, 0).sum() for r in runs))
 
 
 def tail_probability(confidence: float, n: int, df: int) -> float:
@@ -130,12 +128,12 @@ def _resample(
     data = np.ma.getdata(scores)[:, columns].transpose(1, 0, 2)
     mask = np.ma.getmaskarray(scores)[:, columns].transpose(1, 0, 2) if masked else None
     runs = data.shape[1]
-    if unit == SEEDS:  # whole rows: a seed keeps all its contexts (and its missing cells)
+    if unit == RUNS and resampled:  # runs nested in resampled contexts come with them
+        pass
+    elif unit == SEEDS:  # whole rows: a seed keeps all its contexts (and its missing cells)
         rows = rng.integers(0, runs, size=data.shape[:2])
         data = data[np.arange(len(rows))[:, None], rows]
         mask = mask[np.arange(len(rows))[:, None], rows] if masked else None
-    elif resampled:  # runs nested in resampled contexts come with them
-        pass
     elif not masked:  # each context's runs on their own
         rows = rng.integers(0, runs, size=data.shape)
         data = np.take_along_axis(data, rows, 1)

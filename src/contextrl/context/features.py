@@ -160,7 +160,7 @@ def feature(
     return dataclasses.field(default=default, metadata={"feature": spec})
 
 
-def _check_declaration(spec: dict) -> None:
+def check_declaration(spec: dict) -> None:
     """What a feature declaration must satisfy: a known kind and effects, finite bounds around
     its default."""
     kind, affects = spec["kind"], spec["affects"]
@@ -237,7 +237,7 @@ def context_type(cls):
             raise TypeError(f"{cls.__name__}.{field.name} must be declared with feature(...)")
         spec = field.metadata["feature"]
         try:
-            _check_declaration(spec)
+            check_declaration(spec)
         except ValueError as error:
             raise ValueError(f"feature {field.name!r} of {data_cls.__name__}: {error}") from None
         features.append(Feature(name=field.name, **spec))

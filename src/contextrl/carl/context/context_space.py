@@ -20,7 +20,13 @@ import numpy as np
 
 from contextrl.carl.utils.types import Context
 from contextrl.context import distributions
-from contextrl.context.features import ContextBase, ContextError, context_type, feature
+from contextrl.context.features import (
+    ContextBase,
+    ContextError,
+    check_declaration,
+    context_type,
+    feature,
+)
 from contextrl.context.features import ContextSpace as CoreSpace
 
 
@@ -162,8 +168,9 @@ def declared_space(context_space: Mapping[str, ContextFeature]) -> CoreSpace:
             raise ContextError(f"the key {key!r} names the feature {declared.name!r}")
         if not key.isidentifier() or hasattr(ContextBase, key):
             raise ContextError(f"{key!r} cannot name a context feature; use a Python identifier")
+        namespace[key] = feature(**declared.declaration())
         try:
-            namespace[key] = feature(**declared.declaration())
+            check_declaration(namespace[key].metadata["feature"])
         except ValueError as error:
             raise ContextError(f"{key}: {error}") from None
         namespace["__annotations__"][key] = Any
