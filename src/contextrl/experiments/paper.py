@@ -379,19 +379,17 @@ def sensitivity_check(harmless: tuple[str, ...] = (), brittle: tuple[str, ...] =
         zone = {f: _zone(d, gain) for f, d in drops.items()}
         not_harmless = {f for f, d in drops.items() if d.low > HARMLESS * gain}
         not_brittle = {f for f, d in drops.items() if d.high < BRITTLE * gain}
+
+        def named(feature: str, wanted: str, ruled_out: set[str]) -> bool | None:
+            """In the wanted zone: True; its interval rules that out: False; else undecided."""
+            if zone.get(feature) == wanted:
+                return True
+            return False if feature in ruled_out else None
+
         if harmless or brittle:
             holds = _all(
-                [
-                    zone[f] == "harmless" or (False if f in not_harmless else None)
-                    for f in harmless
-                    if f in zone
-                ]
-                + [
-                    zone[f] == "brittle" or (False if f in not_brittle else None)
-                    for f in brittle
-                    if f in zone
-                ]
-                + [None for f in (*harmless, *brittle) if f not in zone]
+                [named(f, "harmless", not_harmless) for f in harmless]
+                + [named(f, "brittle", not_brittle) for f in brittle]
             )
         else:
             found = set(zone.values())
