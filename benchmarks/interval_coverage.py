@@ -20,15 +20,6 @@ import numpy as np
 
 from contextrl.analysis import calibration, intervals
 
-CASES = [
-    ("difference of means", ("shared", "shared")),
-    ("probability of improvement", ("shared", "shared")),
-    ("optimality gap", ("shared", "independent")),
-    ("difference of means", ("independent", "independent")),
-    ("probability of improvement", ("independent", "independent")),
-    ("optimality gap", ("independent", "independent")),
-]
-
 
 def stratified_percentile(reps: int):
     """rliable's interval: every context's runs resampled on their own, plain 2.5/97.5 percentiles."""
@@ -56,7 +47,7 @@ def main() -> None:
         f"{args.reps} replicates; load average {os.getloadavg()[0]:.2f}"
     )
     print(f"{'statistic':28} {'designs':26} {'design-aware':>13} {'stratified':>11} {'seconds':>8}")
-    for statistic, designs in CASES:
+    for statistic, designs in calibration.CASES:
         start = time.perf_counter()
         common = {"experiments": args.experiments, "synthetic": synthetic, "seed": args.seed}
         ours = calibration.coverage(statistic, designs, reps=args.reps, **common)

@@ -124,9 +124,8 @@ def _check_intervals(rows: list[dict], cells: pd.DataFrame, agents: dict[str, st
             f"all {seeds * contexts} ({seeds} seeds × {contexts} contexts)"
         )
         checked += 1
-    assert sorted(r["agent"] for r in rows) == sorted(
-        {agents.get(a, a) for a in cells["agent"]} if not agents else agents
-    )
+    expected = agents if agents else set(cells["agent"])  # every agent has its row
+    assert sorted(r["agent"] for r in rows) == sorted(expected)
     return checked
 
 

@@ -17,17 +17,9 @@ from contextrl.analysis import calibration
 # On the same experiments rliable's stratified percentile bootstrap (the library's intervals before
 # they followed the design) covers far less where seeds are shared: benchmarks/interval_coverage.py.
 SYNTHETIC = calibration.Synthetic(seeds=10, contexts=10)
-CASES = [
-    ("difference of means", ("shared", "shared")),
-    ("probability of improvement", ("shared", "shared")),
-    ("optimality gap", ("shared", "independent")),
-    ("difference of means", ("independent", "independent")),
-    ("probability of improvement", ("independent", "independent")),
-    ("optimality gap", ("independent", "independent")),
-]
 
 
-@pytest.mark.parametrize(("statistic", "designs"), CASES)
+@pytest.mark.parametrize(("statistic", "designs"), calibration.CASES)
 def test_the_95_percent_interval_covers_the_truth_95_percent_of_the_time(statistic, designs):
     """Shared: one agent per seed tested on every context (its seed effect shared by all its
     contexts); independent: a run of its own per context and seed (the specialists)."""

@@ -51,6 +51,16 @@ STATISTICS: dict[str, tuple[Callable, float]] = {
     "probability of improvement": (metrics.probability_of_improvement, 0.5),
 }
 UNIT_OF = {"shared": intervals.SEEDS, "independent": intervals.RUNS}
+# Every statistic in both designs, and the optimality gap's own (a shared general agent against
+# independent specialists): the cases whose coverage the tests and the benchmark measure.
+CASES = [
+    ("difference of means", ("shared", "shared")),
+    ("probability of improvement", ("shared", "shared")),
+    ("optimality gap", ("shared", "independent")),
+    ("difference of means", ("independent", "independent")),
+    ("probability of improvement", ("independent", "independent")),
+    ("optimality gap", ("independent", "independent")),
+]
 
 
 def coverage(

@@ -67,9 +67,8 @@ def aggregate_mean(scores) -> float:
 def aggregate_median(scores) -> float:
     """Median over contexts of the per-context mean over runs (rliable's definition)."""
     means = context_means(scores)
-    if isinstance(means, np.ma.MaskedArray):
-        return _value(np.ma.median(means, axis=-1))
-    return _value(np.median(means, axis=-1))
+    median = np.ma.median if np.ma.isMaskedArray(means) else np.median
+    return _value(median(means, axis=-1))
 
 
 def _trimmed(flat: np.ndarray) -> float:

@@ -266,52 +266,58 @@ def _means(scores: dict, a: str, b: str) -> str:
     return ", ".join(f"{v} {metrics.aggregate_mean(scores[v].matrix):.4g}" for v in (a, b))
 
 
+def _difference_check(
+    a: str, b: str, rule: str, decide: Callable[[Interval, float], bool | None], bounds: str
+) -> Check:
+    """A claim about mean test return ``a`` − ``b``: ``decide(interval, margin)`` says whether it
+    holds, the margin being EQUIVALENCE × the agents' gain; ``bounds`` (formatted with ``margin``
+    and ``gain``) says where the evidence stands against it."""
+
+    def check(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+        scores, diff, over = _variant_difference(runs, a, b)
+        margin = EQUIVALENCE * gain
+        return Verdict(
+            decide(diff, margin),
+            f"mean test return {a} − {b} = {diff} (95% CI over {over}; "
+            + bounds.format(margin=margin, gain=gain)
+            + "); "
+            + _means(scores, a, b),
+        )
+
+    return Check(rule, check)
+
+
 def better_check(a: str, b: str) -> Check:
-    """Variant ``a``'s mean test return is above ``b``'s."""
+    """Variant ``a``'s mean test return is above ``b``'s; not better by a meaningful amount when
+    the interval lies below the equivalence margin."""
+
+    def decide(diff: Interval, margin: float) -> bool | None:
+        return True if diff.low > 0 else (False if diff.high < margin else None)
+
     rule = (
         f"holds when the 95% interval of mean test return {a} − {b} lies above 0; does not hold "
         f"when it lies below {EQUIVALENCE:.0%} of the agents' gain over a random policy at their "
         "training contexts (not better by a meaningful amount); undecided otherwise."
     )
-
-    def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
-        scores, diff, over = _variant_difference(runs, a, b)
-        margin = EQUIVALENCE * gain
-        holds = True if diff.low > 0 else (False if diff.high < margin else None)
-        return Verdict(
-            holds,
-            f"mean test return {a} − {b} = {diff} (95% CI over {over}; holds above 0, does not "
-            f"hold below {margin:.4g}); " + _means(scores, a, b),
-        )
-
-    return Check(rule, decide)
+    return _difference_check(a, b, rule, decide, "holds above 0, does not hold below {margin:.4g}")
 
 
 def similar_check(a: str, b: str) -> Check:
     """No meaningful difference between the mean test returns of ``a`` and ``b``: equivalence
     within a margin fixed before the run, so more seeds can only sharpen the verdict."""
+
+    def decide(diff: Interval, margin: float) -> bool | None:
+        if -margin < diff.low and diff.high < margin:
+            return True
+        return False if diff.low > margin or diff.high < -margin else None
+
     rule = (
         f"holds when the 95% interval of mean test return {a} − {b} lies inside ± "
         f"{EQUIVALENCE:.0%} of the agents' gain over a random policy at their training contexts; "
         "does not hold when it lies outside that margin; undecided otherwise."
     )
-
-    def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
-        scores, diff, over = _variant_difference(runs, a, b)
-        margin = EQUIVALENCE * gain
-        if -margin < diff.low and diff.high < margin:
-            holds = True
-        elif diff.low > margin or diff.high < -margin:
-            holds = False
-        else:
-            holds = None
-        return Verdict(
-            holds,
-            f"mean test return {a} − {b} = {diff} (95% CI over {over}; the margin ± {margin:.4g} "
-            f"= {EQUIVALENCE:.0%} of the gain {gain:.4g}); " + _means(scores, a, b),
-        )
-
-    return Check(rule, decide)
+    bounds = f"the margin ± {{margin:.4g}} = {EQUIVALENCE:.0%} of the gain {{gain:.4g}}"
+    return _difference_check(a, b, rule, decide, bounds)
 
 
 def _drop(runs: np.ndarray, default_column: int) -> np.ndarray:
