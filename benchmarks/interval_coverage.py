@@ -1,6 +1,5 @@
 """Coverage of the 95 % intervals on synthetic experiments whose truth is known, for the library's
-design-aware bootstrap and for rliable's stratified percentile bootstrap (the library's intervals
-before they followed the design), on the same experiments.
+design-aware bootstrap and for rliable's stratified percentile bootstrap, on the same experiments.
 
     python benchmarks/interval_coverage.py                      # 1,000 experiments, 10 seeds × 50 contexts
     python benchmarks/interval_coverage.py --experiments 200 --contexts 20

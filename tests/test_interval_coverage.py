@@ -14,8 +14,8 @@ from contextrl.analysis import calibration
 #   difference of means, independent × independent 0.936-0.945
 #   probability of improvement, independent × ind.  0.937-0.948
 #   optimality gap, independent × independent      0.936-0.945
-# On the same experiments rliable's stratified percentile bootstrap (the library's intervals before
-# they followed the design) covers far less where seeds are shared: benchmarks/interval_coverage.py.
+# On the same experiments rliable's stratified percentile bootstrap covers far less where seeds are
+# shared: benchmarks/interval_coverage.py.
 SYNTHETIC = calibration.Synthetic(seeds=10, contexts=10)
 
 
