@@ -488,8 +488,10 @@ def test_declared_features_take_carls_defaults_and_refuse_what_cannot_be_a_space
         }
     )
     assert space.get_default_context() == {"a": 2.0, "b": 10.0, "c": 2, "d": 0.2, "e": "y"}
-    with pytest.raises(crl.ContextError, match="finite lower and upper"):
-        ContextSpace({"g": NormalFloatContextFeature("g", mu=9.8, sigma=1.0)})
+    with pytest.raises(crl.ContextError, match="g: give a default_value"):
+        ContextSpace({"g": UniformFloatContextFeature("g", lower=1.0, upper=np.inf)})
+    with pytest.raises(crl.ContextError, match="g: upper is NaN"):
+        ContextSpace({"g": UniformFloatContextFeature("g", lower=1.0, upper=np.nan)})
     with pytest.raises(crl.ContextError, match="g: default"):
         ContextSpace(
             {"g": UniformFloatContextFeature("g", lower=1.0, upper=2.0, default_value=5.0)}
@@ -498,10 +500,76 @@ def test_declared_features_take_carls_defaults_and_refuse_what_cannot_be_a_space
         ContextSpace({"g": UniformFloatContextFeature("gravity", lower=1.0, upper=2.0)})
 
 
+def test_infinite_bounds_are_declared_and_checked_but_never_drawn_uniformly():
+    from contextrl.carl.context.context_space import (
+        ContextSpace,
+        NormalFloatContextFeature,
+        UniformFloatContextFeature,
+    )
+    from contextrl.carl.context.sampler import ContextSampler
+
+    space = ContextSpace(
+        {
+            "gravity": UniformFloatContextFeature(
+                "gravity", lower=0.1, upper=np.inf, default_value=9.8
+            ),
+            "friction": NormalFloatContextFeature("friction", mu=0.5, sigma=0.1),  # unbounded
+        }
+    )
+    assert space.get_lower_and_upper_bound("gravity") == (0.1, np.inf)
+    assert space.get_lower_and_upper_bound("friction") == (-np.inf, np.inf)
+    box = space.to_gymnasium_space()
+    np.testing.assert_array_equal(box.low, np.float32([0.1, -np.inf]))
+    np.testing.assert_array_equal(box.high, [np.inf, np.inf])
+    assert space.verify_context({"gravity": 1e30}) and not space.verify_context({"gravity": np.inf})
+    assert not space.verify_context({"gravity": 0.0})
+    with pytest.raises(crl.ContextError, match=r"gravity: cannot draw uniformly from \[0.1, inf\]"):
+        space.sample_contexts(["gravity"])
+    drawn = ContextSampler(
+        [NormalFloatContextFeature("gravity", mu=9.8, sigma=1.0)], space, seed=0
+    ).sample_contexts(200)
+    gravity = np.array([c["gravity"] for c in drawn.values()])
+    assert abs(gravity.mean() - 9.8) < 0.3 and gravity.min() > 0.1
+    assert {c["friction"] for c in drawn.values()} == {0.5}
+
+
+def test_a_truncation_past_the_bounds_is_narrowed_to_them_and_said():
+    from contextrl.carl.context.context_space import NormalFloatContextFeature
+    from contextrl.carl.context.sampler import ContextSampler
+
+    wide = NormalFloatContextFeature("gravity", mu=9.8, sigma=40.0, lower=-100.0, upper=1000.0)
+    with pytest.warns(UserWarning, match=r"reaches past the feature's bounds \[0.1, 100\]"):
+        sampler = ContextSampler([wide], CARLCartPole.get_context_space(), seed=0)
+    gravity = np.array([c["gravity"] for c in sampler.sample_contexts(500).values()])
+    assert 0.1 <= gravity.min() and gravity.max() <= 100.0 and gravity.std() > 10.0
+    point = NormalFloatContextFeature("gravity", mu=9.8, sigma=0.0, lower=1.0, upper=20.0)
+    fixed = ContextSampler([point], CARLCartPole.get_context_space(), seed=0).sample_contexts(3)
+    assert [c["gravity"] for c in fixed.values()] == [9.8] * 3
+    apart = NormalFloatContextFeature("gravity", mu=500.0, sigma=1.0, lower=200.0, upper=900.0)
+    with pytest.raises(crl.ContextError, match="does not meet the feature's bounds"):
+        ContextSampler([apart], CARLCartPole.get_context_space(), seed=0)
+    with pytest.raises(ValueError, match="list or dict of context features"):
+        ContextSampler(0, CARLCartPole.get_context_space(), seed=0)
+
+
+def test_carl_gymnasium_ids_make_the_face_classes():
+    import contextrl.carl  # noqa: F401  (registers carl/<Name>-v0 as importing CARL does)
+
+    env = gymnasium.make("carl/CARLPendulum-v0", contexts={0: {"l": 0.8}})
+    obs, info = env.reset(seed=0)
+    assert isinstance(env.unwrapped, ContextualGymEnv) and obs["context"]["l"][0] == np.float32(0.8)
+    assert isinstance(env.env.env, CARLPendulum)
+    assert "carl/CARLDmcWalkerEnv-v0" in gymnasium.registry
+
+
 def test_carl_envs_lists_its_environment_classes_as_module_attributes():
     import contextrl.carl.envs as envs
     import contextrl.carl.envs.gymnasium as gymnasium_envs
+    from contextrl.carl.envs.carl_env import CARLEnv
 
     assert {"CARLCartPole", "CARLPendulum", *envs.carl_names()} <= set(vars(envs))
+    # as in CARL, every CARL name there is an environment to build (CARL's test_init_all_envs)
+    named = [value for name, value in vars(envs).items() if "CARL" in name]
+    assert named and all(issubclass(value, CARLEnv) and value.env_id for value in named)
     assert vars(envs)["CARLCartPole"] is CARLCartPole and "CARLCartPole" in dir(envs)
     assert set(envs.carl_names("classic_control")) <= set(vars(gymnasium_envs))

@@ -12,8 +12,11 @@ contextrl, and each difference is listed here:
 - Every feature acts (CartPole's ``masscart``/``masspole``/``length`` change the dynamics; CARL caches the
   derived masses), and the default context is the original environment (CartPole starts in ±0.05 as
   gymnasium does; CARL's default is ±0.1).
-- Bounds are finite and checked: an unknown feature, a value outside its bounds, NaN or a wrong type is
-  refused when the environment or sampler is built (CARL accepts anything and may sample inf/NaN).
+- Values are checked: an unknown feature, a value outside its bounds, NaN, inf or a wrong type is refused
+  when the environment or sampler is built (CARL accepts anything and may sample inf/NaN). A declared
+  bound may be infinite, as in CARL, but a uniform draw needs finite bounds and is refused otherwise
+  (CARL draws inf); a normal's truncation that reaches past the feature's bounds is narrowed to them,
+  with a warning (CARL draws values outside the space). ``sigma=0`` draws ``mu``.
 - Seeds are honoured: ``reset(seed=...)`` fixes the start states and the random selector's choices, and
   ``ContextSampler(seed=...)`` and ``ContextSpace.sample_contexts(seed=...)`` fix the samples (CARL's random
   selector and ``sample_contexts`` use NumPy's global RNG).
@@ -27,9 +30,10 @@ contextrl, and each difference is listed here:
   physics mid-way, then its selector moves on at the next reset).
 - ``NormalFloatContextFeature`` needs no bounds: without them it is truncated to the feature's bounds.
 - ``ContextSpace`` built from a user's own features (``ContextSpace({...})`` or a ``CARLEnv`` subclass's
-  ``get_context_features()``) declares a contextrl context type: every feature needs finite bounds,
-  categorical choices are strings, and values are checked as for a built-in environment. Such a subclass
-  describes contexts only; what runs is a registered contextrl environment.
+  ``get_context_features()``) declares a contextrl context type: an infinite bound holds every value a
+  float32 (int32) context can store, a default must be finite, categorical choices are strings, and values
+  are checked as for a built-in environment. Such a subclass describes contexts only; what runs is a
+  registered contextrl environment.
 - ``ContextSampler`` takes a list or dict of feature classes, not a ConfigSpace search-space string or
   ``DictConfig``; the feature classes are plain dataclasses, not ConfigSpace hyperparameters. A feature
   is drawn as the kind contextrl declares it (an integer class over a float feature draws floats).
@@ -37,3 +41,7 @@ contextrl, and each difference is listed here:
   gymnasium environment: the dynamics are contextrl's.
 - ``contexts`` values are stored at the precision the environment uses (float32).
 """
+
+from contextrl.carl.envs.carl_env import register_carl_ids
+
+register_carl_ids()

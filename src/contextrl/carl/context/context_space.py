@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Hashable, Mapping, Sequence
 from typing import Any
 
@@ -30,6 +31,22 @@ from contextrl.context.features import (
 from contextrl.context.features import ContextSpace as CoreSpace
 
 
+def checked_bounds(feature: ContextFeature, lower: Any, upper: Any) -> tuple[float, float]:
+    """``lower`` and ``upper`` if they are numbers (±inf included) in order; one clear line otherwise."""
+    for key, value in (("lower", lower), ("upper", upper)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+            raise ContextError(
+                f"{feature.name}: a context space needs numbers for lower and upper, got "
+                f"{key}={value!r}; e.g. {type(feature).__name__}({feature.name!r}, lower=0.1, "
+                "upper=10.0, ...)"
+            )
+        if math.isnan(value):
+            raise ContextError(f"{feature.name}: {key} is NaN; give a number or ±inf")
+    if lower > upper:
+        raise ContextError(f"{feature.name}: lower {lower:g} is above upper {upper:g}")
+    return lower, upper
+
+
 @dataclasses.dataclass(frozen=True)
 class ContextFeature:
     """A named context feature with a distribution (the base of every CARL feature class)."""
@@ -39,19 +56,17 @@ class ContextFeature:
     def distribution(self) -> distributions.Distribution:
         raise NotImplementedError
 
+    def within(self, bounds: tuple[float, float]) -> distributions.Distribution:
+        """The distribution to draw from for a feature bounded by ``bounds``."""
+        return self.distribution()
+
     def declaration(self) -> dict[str, Any]:
         """The arguments of contextrl's ``feature(...)`` declaring this feature (default, bounds, kind)."""
         raise NotImplementedError
 
     def bounds(self) -> tuple[float, float]:
-        lower, upper = getattr(self, "lower", None), getattr(self, "upper", None)
-        if lower is None or upper is None or not math.isfinite(lower) or not math.isfinite(upper):
-            raise ContextError(
-                f"{self.name}: a context space needs finite lower and upper bounds, got "
-                f"lower={lower!r}, upper={upper!r}; e.g. {type(self).__name__}({self.name!r}, "
-                "lower=0.1, upper=10.0, ...)"
-            )
-        return lower, upper
+        """``lower`` and ``upper`` as declared; either may be infinite (CARL declares gravity up to inf)."""
+        return checked_bounds(self, getattr(self, "lower", None), getattr(self, "upper", None))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,17 +84,33 @@ class NumericalContextFeature(ContextFeature):
 class UniformFloatContextFeature(NumericalContextFeature):
     """Uniform (log-uniform with ``log=True``) over [lower, upper]."""
 
+    def drawable(self) -> tuple[float, float]:
+        """The bounds, refused if one is infinite: a uniform draw needs both ends."""
+        lower, upper = self.bounds()
+        if not (math.isfinite(lower) and math.isfinite(upper)):
+            raise ContextError(
+                f"{self.name}: cannot draw uniformly from [{lower:g}, {upper:g}]: a bound is "
+                "infinite; give finite lower and upper to sample this feature, or leave it out of "
+                "the features to sample (it keeps its default)"
+            )
+        return lower, upper
+
     def distribution(self) -> distributions.Distribution:
         kind = distributions.LogUniform if self.log else distributions.Uniform
-        return kind(self.lower, self.upper)
+        return kind(*self.drawable())
 
     def declaration(self) -> dict[str, Any]:
         """Without a ``default_value``, the middle of the range (geometric with ``log``), as CARL's."""
-        lower, upper = self.bounds()
         default = self.default_value
         if default is None:
+            lower, upper = self.bounds()
+            if not (math.isfinite(lower) and math.isfinite(upper)):
+                raise ContextError(
+                    f"{self.name}: give a default_value; the middle of [{lower:g}, {upper:g}] "
+                    "(CARL's default) is not a number"
+                )
             default = math.sqrt(lower * upper) if self.log else (lower + upper) / 2
-        return integral(self, dict(default=default, lower=lower, upper=upper))
+        return declared(self, default)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,16 +130,46 @@ class NormalFloatContextFeature(ContextFeature):
     log: bool = False
     meta: Mapping[Hashable, Any] | None = None
 
+    def bounds(self) -> tuple[float, float]:
+        """Without ``lower`` or ``upper`` the normal is unbounded on that side, as in CARL."""
+        lower = -math.inf if self.lower is None else self.lower
+        return checked_bounds(self, lower, math.inf if self.upper is None else self.upper)
+
     def distribution(self) -> distributions.Distribution:
+        """``sigma=0`` is the point ``mu`` (CARL's tests use it for a fixed value)."""
         if self.log:
             raise ContextError(f"{self.name}: a log-normal context feature is not supported")
+        if isinstance(self.sigma, (int, float, np.number)) and self.sigma == 0:
+            return distributions.Constant(self.mu)
         return distributions.Normal(self.mu, self.sigma, self.lower, self.upper)
+
+    def within(self, bounds: tuple[float, float]) -> distributions.Distribution:
+        """The distribution, its truncation narrowed to the feature's ``bounds`` where it reaches past
+        them (CARL accepts such a truncation): the same law as drawing and redrawing every value
+        outside, said once in a warning; an empty overlap is refused."""
+        distribution = self.distribution()
+        lower = bounds[0] if self.lower is None else self.lower
+        upper = bounds[1] if self.upper is None else self.upper
+        inside = bounds[0] <= lower and upper <= bounds[1]
+        if not isinstance(distribution, distributions.Normal) or inside:
+            return distribution
+        low, high = max(lower, bounds[0]), min(upper, bounds[1])
+        if low > high:
+            raise ContextError(
+                f"{self.name}: the truncation [{self.lower:g}, {self.upper:g}] does not meet the "
+                f"feature's bounds [{bounds[0]:g}, {bounds[1]:g}]"
+            )
+        warnings.warn(
+            f"{self.name}: Normal truncated to [{self.lower:g}, {self.upper:g}] reaches past the "
+            f"feature's bounds [{bounds[0]:g}, {bounds[1]:g}]; drawing from [{low:g}, {high:g}]",
+            stacklevel=4,
+        )
+        return dataclasses.replace(distribution, low=low, high=high)
 
     def declaration(self) -> dict[str, Any]:
         """Without a ``default_value``, the mean ``mu``, as CARL's."""
-        lower, upper = self.bounds()
         default = self.mu if self.default_value is None else self.default_value
-        return integral(self, dict(default=default, lower=lower, upper=upper))
+        return declared(self, default)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,10 +208,20 @@ class CategoricalContextFeature(ContextFeature):
 INTEGRAL = (UniformIntegerContextFeature, NormalIntegerContextFeature)
 
 
-def integral(feature: ContextFeature, declaration: dict[str, Any]) -> dict[str, Any]:
-    """An integer feature's declaration: kind int, its default rounded."""
-    if isinstance(feature, INTEGRAL):
-        return {**declaration, "default": round(declaration["default"]), "kind": "int"}
+def declared(feature: ContextFeature, default: float) -> dict[str, Any]:
+    """The arguments of contextrl's ``feature(...)`` for a numeric CARL feature. An infinite bound is
+    declared as the widest value a context holds (float32's or int32's): every value a context can
+    store lies inside it, as every finite value lies inside CARL's infinite bound."""
+    lower, upper = feature.bounds()
+    integer = isinstance(feature, INTEGRAL)
+    widest = np.iinfo(np.int32) if integer else np.finfo(np.float32)
+    declaration = dict(
+        default=default,
+        lower=max(lower, float(widest.min)),
+        upper=min(upper, float(widest.max)),
+    )
+    if integer and isinstance(default, (int, float)) and math.isfinite(default):
+        return {**declaration, "default": round(default), "kind": "int"}
     return declaration
 
 
@@ -186,6 +257,15 @@ def feature_of(core: CoreSpace, name: str) -> ContextFeature:
         )
     kind = UniformIntegerContextFeature if declared.kind == "int" else UniformFloatContextFeature
     return kind(name, declared.lower, declared.upper, declared.default)
+
+
+def drawn_from(core: CoreSpace, features: list[ContextFeature]) -> dict[str, Any]:
+    """The distribution spec of CARL ``features`` over contextrl's space ``core``, checked."""
+    spec = {}
+    for declared in features:
+        name = core.resolve(declared.name)
+        spec[name] = declared.within(core.features[name].bounds)
+    return distributions.check_spec(core, spec)
 
 
 def plain_values(core: CoreSpace, context) -> Context:
@@ -229,15 +309,20 @@ class ContextSpace:
         return plain_values(self.core, self.core.default())
 
     def get_lower_and_upper_bound(self, context_feature_name: str) -> tuple[float, float]:
-        return self.core.features[self.core.resolve(context_feature_name)].bounds
+        """The bounds as declared (an infinite one stays infinite); a categorical feature's index range."""
+        name = self.core.resolve(context_feature_name)
+        declared = self.context_space[name]
+        if isinstance(declared, CategoricalContextFeature):
+            return self.core.features[name].bounds
+        return declared.bounds()
 
     def to_gymnasium_space(
         self, context_feature_names: list[str] | None = None, as_dict: bool = False
     ) -> gymnasium.spaces.Space:
         """A Box of the named features' values, or a Dict of one shape-(1,) Box per feature."""
         names = [self.core.resolve(name) for name in (context_feature_names or self.core.names)]
-        low = np.array([self.core.features[n].lower for n in names], np.float32)
-        high = np.array([self.core.features[n].upper for n in names], np.float32)
+        bounds = np.array([self.get_lower_and_upper_bound(name) for name in names], np.float32)
+        low, high = bounds[:, 0], bounds[:, 1]
         if not as_dict:
             return gymnasium.spaces.Box(low, high, dtype=np.float32)
         return gymnasium.spaces.Dict(
@@ -253,7 +338,7 @@ class ContextSpace:
         """Contexts drawn uniformly over the bounds of ``context_keys`` (all features if None), the rest
         at their defaults; seeded. One context for ``size=1``, else a list."""
         names = [self.core.resolve(name) for name in (context_keys or self.core.names)]
-        spec = {name: self.context_space[name].distribution() for name in names}
+        spec = drawn_from(self.core, [self.context_space[name] for name in names])
         batch = distributions.sample(self.core, spec, size, jax.random.key(seed))
         contexts = [plain_values(self.core, batch[i]) for i in range(size)]
         return contexts[0] if size == 1 else contexts

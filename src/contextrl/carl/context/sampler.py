@@ -10,9 +10,14 @@ from collections.abc import Mapping, Sequence
 
 import jax
 
-from contextrl.carl.context.context_space import ContextFeature, ContextSpace, plain_values
+from contextrl.carl.context.context_space import (
+    ContextFeature,
+    ContextSpace,
+    drawn_from,
+    plain_values,
+)
 from contextrl.carl.utils.types import Context, Contexts
-from contextrl.context.distributions import check_spec, draw
+from contextrl.context.distributions import draw
 from contextrl.context.features import ContextError
 
 
@@ -28,7 +33,7 @@ class ContextSampler:
     ):
         if isinstance(context_distributions, Mapping):
             context_distributions = list(context_distributions.values())
-        if isinstance(context_distributions, str) or not all(
+        if not isinstance(context_distributions, Sequence) or not all(
             isinstance(f, ContextFeature) for f in context_distributions
         ):
             raise ContextError(
@@ -42,9 +47,7 @@ class ContextSampler:
         self.context_space = context_space
         self.seed = seed
         self.name = name
-        self.spec = check_spec(
-            context_space.core, {f.name: f.distribution() for f in self.context_distributions}
-        )
+        self.spec = drawn_from(context_space.core, self.context_distributions)
         self.context_feature_names = list(self.spec)
         self._calls = 0
 

@@ -2,10 +2,12 @@
 
 ``from contextrl.carl.envs import CARLCartPole`` works for every registered ``CARL…`` alias, so a family
 that registers its CARL names appears here with no further code. The classes are module attributes (as in
-CARL's module, ``vars()`` lists them); building them reads only the registry, importing no simulator.
+CARL's module, ``vars()`` lists them, and as there every ``CARL…`` name here is an environment: the base
+class is ``contextrl.carl.envs.carl_env.CARLEnv``); building them reads only the registry, importing no
+simulator.
 """
 
-from contextrl.carl.envs.carl_env import CARLEnv, carl_class, carl_classes, carl_names
+from contextrl.carl.envs.carl_env import carl_class, carl_classes, carl_names
 
 globals().update(carl_classes())
 
@@ -15,4 +17,4 @@ def __getattr__(name: str):
     return carl_class(name)
 
 
-__all__ = ["CARLEnv", *carl_names()]
+__all__ = carl_names()

@@ -318,3 +318,15 @@ def family_getattr(*families: str) -> Callable[[str], type[CARLEnv]]:
         return carl_class(name)
 
     return module_getattr
+
+
+def register_carl_ids() -> list[str]:
+    """Register ``carl/<Name>-v0`` with gymnasium for every CARL class not yet known to it, as importing
+    CARL does, so ``gymnasium.make("carl/CARLCartPole-v0")`` builds the face's class; returns the new ids."""
+    added = []
+    for name in carl_names():
+        gymnasium_id = f"carl/{name}-v0"
+        if gymnasium_id not in gymnasium.registry:
+            gymnasium.register(gymnasium_id, entry_point=f"contextrl.carl.envs:{name}")
+            added.append(gymnasium_id)
+    return added
