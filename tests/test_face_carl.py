@@ -573,3 +573,73 @@ def test_carl_envs_lists_its_environment_classes_as_module_attributes():
     assert named and all(issubclass(value, CARLEnv) and value.env_id for value in named)
     assert vars(envs)["CARLCartPole"] is CARLCartPole and "CARLCartPole" in dir(envs)
     assert set(envs.carl_names("classic_control")) <= set(vars(gymnasium_envs))
+
+
+def test_carls_lunarlander_demo_runs_its_way_on_the_face(monkeypatch):
+    """CARL's demo_heuristic_lunarlander.py, our equivalent: gymnasium's heuristic reads
+    ``env.unwrapped.continuous``, episodes are reset with a seed each and still go round the contexts,
+    and ``render_mode`` set on the class opens a window (SDL's dummy driver here).
+
+    Measured (seeds 0–7, gravity −10 and −5): the heuristic's returns 193–320; it lands above 100."""
+    from gymnasium.envs.box2d.lunar_lander import heuristic
+
+    from contextrl.carl.envs import CARLLunarLander
+
+    env = CARLLunarLander(contexts={0: {"GRAVITY_Y": -10.0}, 1: {"GRAVITY_Y": -5.0}})
+    returns, ids = [], []
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        ids.append(info["context_id"])
+        total, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(heuristic(env, obs["obs"]))
+            total, done = total + reward, terminated or truncated
+        returns.append(total)
+    assert ids == [0, 1, 0] and min(returns) > 100
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    monkeypatch.setattr(CARLLunarLander, "render_mode", "human", raising=False)
+    shown = CARLLunarLander()
+    assert shown.unwrapped.render_mode == "human"
+    shown.reset(seed=0)
+    assert shown.render() is None  # drawn into the window, as gymnasium's "human" mode does
+    shown.close()
+
+
+def test_a_selector_brings_its_own_contexts_and_context_id_switches_them():
+    """CARL's manually_switch_contexts notebook, our equivalent on CartPole (its Finger lengths lie
+    outside CARL's own bounds): the selector's contexts are the set, context_id picks the next one."""
+    from contextrl.carl.context.selection import StaticSelector
+
+    long_pole = {**CARLCartPole.get_default_context(), "length": 1.0}
+    contexts = {0: CARLCartPole.get_default_context(), 1: long_pole}
+    env = CARLCartPole(context_selector=StaticSelector(contexts))
+    env.reset(seed=0)
+    assert env.context["length"] == 0.5
+    env.context_id = 1
+    assert [env.reset()[1]["context"]["length"] for _ in range(2)] == [1.0, 1.0]
+
+
+def test_carls_sb3_example_trains_dqn_on_a_carl_gymnasium_id():
+    """CARL's carl_with_sb3.py, our equivalent (fewer steps): contexts from a sampler, the environment
+    from ``gymnasium.make("carl/CARLLunarLander-v0", ...)``, flattened, trained and evaluated by SB3."""
+    pytest.importorskip("stable_baselines3")
+    from gymnasium.wrappers import FlattenObservation
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from contextrl.carl.context.context_space import NormalFloatContextFeature
+    from contextrl.carl.context.sampler import ContextSampler
+    from contextrl.carl.envs import CARLLunarLander
+
+    gravity = NormalFloatContextFeature("GRAVITY_X", mu=9.8, sigma=1, upper=50, lower=0)
+    with pytest.warns(UserWarning, match="reaches past the feature's bounds"):
+        sampler = ContextSampler([gravity], CARLLunarLander.get_context_space(), seed=42)
+    contexts = sampler.sample_contexts(n_contexts=5)
+    env = FlattenObservation(
+        gymnasium.make("carl/CARLLunarLander-v0", render_mode="rgb_array", contexts=contexts)
+    )
+    model = DQN("MlpPolicy", env, learning_starts=100, seed=0).learn(total_timesteps=300)
+    mean_reward, _ = evaluate_policy(model, model.get_env(), n_eval_episodes=1)
+    assert np.isfinite(mean_reward)
+    assert env.get_wrapper_attr("contexts") == contexts
+    assert all(0.0 <= c["GRAVITY_X"] <= 20.0 for c in contexts.values())

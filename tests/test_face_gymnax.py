@@ -200,3 +200,28 @@ def test_registered_envs_is_a_list_of_ids_as_gymnax_has_it():
     shared = {"CartPole-v1", "Pendulum-v1", "Acrobot-v1", "MountainCar-v0"}
     assert shared | {"MountainCarContinuous-v0"} <= set(gymnax.registered_envs)
     assert "CartPole" not in gymnax.registered_envs  # one id per environment
+
+
+def test_gymnax_1_code_gets_six_values_from_v1_and_both_agree():
+    """``import contextrl.gymnax.v1 as gymnax`` answers gymnax 1.0's step (terminated and truncated in
+    place of done); the default face keeps 0.0.x's five. Same transitions, episode end by episode end."""
+    import contextrl.gymnax.v1 as gymnax1
+
+    five, params = gymnax.make("CartPole-v1", max_steps=30)
+    six, _ = gymnax1.make("CartPole-v1", max_steps=30)
+    assert gymnax1.registered_envs == gymnax.registered_envs
+    obs5, state5 = five.reset(jax.random.key(0), params)
+    _, state6 = six.reset(jax.random.key(0), params)
+    ends = {"terminated": 0, "truncated": 0}
+    for t in range(80):  # balancing (truncated at 30 steps), then pushing left (terminated)
+        key, action = jax.random.key(t + 1), int(obs5[2] > 0) if t < 40 else 0
+        obs5, state5, reward5, done, info5 = five.step(key, state5, action, params)
+        obs6, state6, reward6, terminated, truncated, info6 = six.step(key, state6, action, params)
+        np.testing.assert_array_equal(obs5, obs6)
+        assert float(reward5) == float(reward6) and bool(done) == bool(terminated | truncated)
+        assert bool(terminated) == bool(info5["terminated"]) and set(info6) == set(info5)
+        ends["terminated"] += int(terminated)
+        ends["truncated"] += int(truncated)
+    assert ends["terminated"] > 0 and ends["truncated"] > 0  # both kinds of end were compared
+    with pytest.raises(ValueError, match="step_api must be one of"):
+        gymnax.make("CartPole-v1", step_api="2.0")

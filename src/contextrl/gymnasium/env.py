@@ -213,9 +213,7 @@ class ContextualGymEnv(gymnasium.Env):
         # The world rectangle JAX renderings show; None fits each context (grids share one).
         self.render_world_box: tuple[float, float, float, float] | None = None
         self.copy_index, self.num_copies = int(copy_index), int(num_copies)
-        # A host simulator renders through its own GL context (EGL for MuJoCo), which a pygame window
-        # in the same process can break: host envs offer frames only.
-        modes = ["rgb_array"] if isinstance(inner, HostEnv) else list(RENDER_MODES)
+        modes = ["rgb_array"] if getattr(inner, "gl_frames", False) else list(RENDER_MODES)
         if render_mode is not None and render_mode not in modes:
             raise ValueError(f"{inner.name} renders only in modes {modes}, got {render_mode!r}")
         self.metadata = {
@@ -299,6 +297,14 @@ class ContextualGymEnv(gymnasium.Env):
         source = backend.simulator if isinstance(backend, HostBackend) else backend
         physics, context = source.physics_and_context()
         return draw(self.contextrl_env, physics, context, world_box=self.render_world_box)
+
+    def __getattr__(self, name: str) -> Any:
+        """A public attribute of the contextrl environment inside (``continuous``, which gymnasium's
+        LunarLander heuristic reads from ``env.unwrapped``), as gymnasium's own environments have them."""
+        inner = self.__dict__.get("contextrl_env")
+        if name.startswith("_") or inner is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return getattr(inner, name)
 
     def render(self):
         """The current frame (``"rgb_array"``), or shown in a window (``"human"``, needs pygame)."""

@@ -41,14 +41,19 @@ class ContextSampler:
                 f"(UniformFloatContextFeature, NormalFloatContextFeature, ...), got "
                 f"{context_distributions!r}"
             )
-        if isinstance(seed, bool) or not isinstance(seed, int):
-            raise ContextError(f"seed must be an integer, got {seed!r}")
         self.context_distributions = list(context_distributions)
         self.context_space = context_space
-        self.seed = seed
         self.name = name
         self.spec = drawn_from(context_space.core, self.context_distributions)
         self.context_feature_names = list(self.spec)
+        self.seed(seed)
+
+    def seed(self, seed: int) -> None:
+        """Draw from ``seed`` from now on, as if the sampler were new (CARL's sampler, a ConfigSpace
+        space, has this method; Mighty reseeds it between its training and evaluation sets)."""
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ContextError(f"seed must be an integer, got {seed!r}")
+        self._seed = seed
         self._calls = 0
 
     def get_context_features(self) -> list[ContextFeature]:
@@ -61,7 +66,7 @@ class ContextSampler:
     def _sample_contexts(self, size: int = 1) -> list[Context]:
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             raise ContextError(f"the number of contexts must be a positive integer, got {size!r}")
-        key = jax.random.fold_in(jax.random.key(self.seed), self._calls)
+        key = jax.random.fold_in(jax.random.key(self._seed), self._calls)
         self._calls += 1
         core = self.context_space.core
         batch = draw(core, self.spec, size, key)

@@ -1,9 +1,10 @@
 """CARL's context selectors, choosing with contextrl's own selectors.
 
-Inside an environment the built-in selectors (round robin, random, static) are handed to contextrl's
-core, which picks each episode's context from the reset seed; the selector object is kept up to date
-(``context_id``, ``n_calls``) so code that reads it still works. A ``CustomSelector`` or a user's subclass
-is asked for the context at every reset. Called on their own, ``select()`` uses the same core selectors.
+Inside an environment the random and static selectors are handed to contextrl's core, which picks each
+episode's context from the reset seed; the selector object is kept up to date (``context_id``,
+``n_calls``) so code that reads it still works. Round robin, a ``CustomSelector`` and a user's subclass
+are asked for the context at every reset, so the cycle goes on across seeded resets as in CARL (a seed
+starts the core's own schedule over). Called on their own, ``select()`` uses the same core selectors.
 """
 
 from __future__ import annotations
@@ -90,11 +91,7 @@ class StaticSelector(AbstractSelector):
         return self._chosen(self.core_selector()(None, self.n_calls, len(self.contexts)))
 
 
-BUILT_IN = (
-    RoundRobinSelector,
-    RandomSelector,
-    StaticSelector,
-)  # chosen by the core in an environment
+BUILT_IN = (RandomSelector, StaticSelector)  # chosen by the core in an environment
 
 
 class CustomSelector(AbstractSelector):

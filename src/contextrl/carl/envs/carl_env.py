@@ -86,7 +86,9 @@ class CARLEnv(gymnasium.Wrapper):
         self.obs_context_features = [space.resolve(name) for name in names]
         self.obs_context_as_dict = obs_context_as_dict
         self._source = self.env_id if env is None else env
-        self._gym_kwargs = {"render_mode": "rgb_array", **kwargs}
+        self._gym_kwargs = {"render_mode": self._class_render_mode(), **kwargs}
+        if contexts is None and isinstance(context_selector, AbstractSelector):
+            contexts = context_selector.contexts  # CARL runs the contexts its selector was given
         self._contexts = self._fill(contexts)
         self.context_selector = self._selector(context_selector, context_selector_kwargs)
         super().__init__(self._build())
@@ -98,10 +100,25 @@ class CARLEnv(gymnasium.Wrapper):
         self._context_id: Any = None
         self._next_id: Any = None
 
+    def __getattr__(self, name: str) -> Any:
+        """A public attribute of the environment this class runs (``env.continuous``), as gymnasium
+        0.29's wrappers, CARL's base, forwarded them."""
+        inner = self.__dict__.get("env")
+        if name.startswith("_") or inner is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return getattr(inner.unwrapped, name)
+
     # ---- construction -------------------------------------------------------------------------------
     @classmethod
     def _core(cls) -> CoreSpace:
         return core_space(cls.env_id)
+
+    @classmethod
+    def _class_render_mode(cls) -> str:
+        """``CARLPendulum.render_mode = "human"`` (how CARL's demos and tests choose it), else
+        "rgb_array"; gymnasium's own ``render_mode`` is a property until a class sets a string."""
+        mode = getattr(cls, "render_mode", None)
+        return mode if isinstance(mode, str) else "rgb_array"
 
     def _fill(self, contexts: Contexts | None) -> Contexts:
         """The context set with every feature filled in, validated by contextrl's parser."""

@@ -1,9 +1,16 @@
 """gymnax's API over every contextrl JAX environment: trainers written for gymnax run unchanged.
 
-    import contextrl.gymnax as gymnax                      # was: import gymnax
+    import contextrl.gymnax as gymnax                      # was: import gymnax (0.0.x, PureJaxRL)
     env, params = gymnax.make("CartPole")                  # gymnax's ids work too: "CartPole-v1"
     obs, state = env.reset(key, params)
     obs, state, reward, done, info = env.step(key, state, action, params)
+
+    import contextrl.gymnax.v1 as gymnax                   # was: import gymnax (1.0)
+    obs, state, reward, terminated, truncated, info = env.step(key, state, action, params)
+
+``step`` returns five values here, as gymnax 0.0.x did and as PureJaxRL and most published trainers
+expect; gymnax 1.0's six (``terminated`` and ``truncated`` in place of ``done``) come from
+``contextrl.gymnax.v1`` or ``make(id, step_api="1.0")``.
 
 The params are the context (``CartPoleContext``): ``params.replace(length=0.8)`` gives another one, and a
 batch from ``crl.sample`` is a batch of params, so ``jax.vmap(env.step)(keys, states, actions, batch)``
@@ -33,6 +40,10 @@ from contextrl.core.registry import make as make_env
 from contextrl.core.registry import registered, spec
 from contextrl.core.spaces import Box, Discrete
 
+# gymnax's step conventions: 0.0.x returns (obs, state, reward, done, info); 1.0 returns (obs, state,
+# reward, terminated, truncated, info).
+STEP_APIS = ("0.x", "1.0")
+
 
 class Environment:
     """A contextrl ``Env`` answering gymnax's calls; its params are the env's context type.
@@ -41,8 +52,14 @@ class Environment:
     them is fast too; inside a caller's ``jit`` they simply inline.
     """
 
-    def __init__(self, env: Env):
+    def __init__(self, env: Env, step_api: str = "0.x"):
+        if step_api not in STEP_APIS:
+            raise ValueError(
+                f"step_api must be one of {list(STEP_APIS)} (gymnax 0.0.x's five values or 1.0's "
+                f"six), got {step_api!r}"
+            )
         self.env = env
+        self.step_api = step_api
         self._action_space = gymnax_space(env.action_space)
         self._observation_space = gymnax_space(env.observation_space)
         self.reset = jax.jit(self._reset)
@@ -76,9 +93,9 @@ class Environment:
         state, timestep = self.env.reset(key, self._params(params))
         return timestep.obs, state
 
-    def _step(
-        self, key: jax.Array, state: EnvState, action: Any, params: Any = None
-    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
+    def _step(self, key: jax.Array, state: EnvState, action: Any, params: Any = None) -> tuple:
+        """(obs, state, reward, done, info), or with ``step_api="1.0"`` (obs, state, reward,
+        terminated, truncated, info)."""
         state, timestep = self.env.step(key, state, action, self._params(params))
         info = {
             "terminated": timestep.terminated,
@@ -86,6 +103,15 @@ class Environment:
             "discount": 1.0 - timestep.terminated.astype(jnp.float32),
             "final_observation": timestep.final_obs,
         }
+        if self.step_api == "1.0":
+            return (
+                timestep.obs,
+                state,
+                timestep.reward,
+                timestep.terminated,
+                timestep.truncated,
+                info,
+            )
         return timestep.obs, state, timestep.reward, timestep.done, info
 
     def _params(self, params: Any):
@@ -111,10 +137,10 @@ def _jax_ids() -> list[str]:
     return [env_id for env_id in registered() if not spec(env_id).host]
 
 
-def make(env_id: str, **kwargs: Any) -> tuple[Environment, Any]:
+def make(env_id: str, step_api: str = "0.x", **kwargs: Any) -> tuple[Environment, Any]:
     """``(env, default_params)`` for a registered JAX environment (contextrl id, CARL alias or gymnax id
-    such as ``"CartPole-v1"``). Keyword arguments go to ``crl.make`` (``max_steps``,
-    ``obs_context_features``, ...)."""
+    such as ``"CartPole-v1"``). ``step_api``: "0.x" (five values) or "1.0" (six). Other keyword
+    arguments go to ``crl.make`` (``max_steps``, ``obs_context_features``, ...)."""
     try:
         env_spec = spec(env_id)
     except KeyError:
@@ -127,7 +153,7 @@ def make(env_id: str, **kwargs: Any) -> tuple[Environment, Any]:
             f"{env_spec.id} steps on the host, outside JAX, so it has no gymnax face; "
             f"JAX environments: {_jax_ids()}"
         )
-    env = Environment(make_env(env_spec.id, **kwargs))
+    env = Environment(make_env(env_spec.id, **kwargs), step_api)
     return env, env.default_params
 
 
