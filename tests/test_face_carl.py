@@ -643,3 +643,43 @@ def test_carls_sb3_example_trains_dqn_on_a_carl_gymnasium_id():
     assert np.isfinite(mean_reward)
     assert env.get_wrapper_attr("contexts") == contexts
     assert all(0.0 <= c["GRAVITY_X"] <= 20.0 for c in contexts.values())
+
+
+def test_brax_goal_contexts_in_carls_codes_choose_the_goal_variant():
+    """CARL's brax_with_goals notebook, our equivalent without stepping (Brax compiles for minutes on
+    a CPU; tests/test_brax.py steps the goal variant): CARL's direction codes in and out, the goal
+    variant built when a context moves the target, the stock task otherwise."""
+    pytest.importorskip("brax")
+    from contextrl.carl.context.context_space import (
+        CategoricalContextFeature,
+        NormalFloatContextFeature,
+    )
+    from contextrl.carl.context.sampler import ContextSampler
+    from contextrl.carl.envs.brax import CARLBraxAnt, CARLBraxHalfcheetah
+    from contextrl.carl.envs.brax.brax_walker_goal_wrapper import directions
+    from contextrl.carl.envs.brax.carl_brax_env import goal_sentence
+
+    assert CARLBraxAnt.get_default_context()["target_direction"] == 2  # east, the stock forward
+    assert CARLBraxHalfcheetah.get_context_features()["target_direction"].choices == [2, 4]
+    distance = NormalFloatContextFeature("target_distance", mu=9.8, sigma=1, upper=50, lower=0)
+    direction = CategoricalContextFeature("target_direction", choices=directions)
+    with pytest.warns(UserWarning, match="drawing from \\[1, 50\\]"):
+        sampler = ContextSampler([distance, direction], CARLBraxAnt.get_context_space(), seed=0)
+    contexts = sampler.sample_contexts(40)
+    assert {c["target_direction"] for c in contexts.values()} <= set(directions)
+    assert len({c["target_direction"] for c in contexts.values()}) > 8
+    contexts[0] = {**contexts[0], "target_direction": 112}  # CARL's north-north-east
+    env = CARLBraxAnt(contexts=contexts, use_language_goals=True)
+    assert env.unwrapped.contextrl_env.goal and "goal" in env.observation_space.spaces
+    schedule = env.unwrapped.schedule  # the run's contexts hold contextrl's compass names
+    first = schedule.values_dict(np.asarray(schedule.space.to_array(schedule.contexts[0])))
+    assert first["target_direction"] == "NNE" and env.contexts == contexts  # shown in CARL's codes
+    stock = CARLBraxAnt(contexts={0: {"gravity": 5.0}})
+    assert not stock.unwrapped.contextrl_env.goal
+    assert "target_distance" not in stock.observation_space["context"].spaces
+    sentence = goal_sentence(
+        {"target_distance": 20.0, "target_direction": 112, "target_radius": 5.0}
+    )
+    assert sentence.startswith("Reach the target 20 m to the north north east")
+    with pytest.raises(crl.ContextError, match="not one of CARL's codes"):
+        CARLBraxAnt(contexts={0: {"target_direction": 5}})

@@ -200,6 +200,11 @@ def test_registered_envs_is_a_list_of_ids_as_gymnax_has_it():
     shared = {"CartPole-v1", "Pendulum-v1", "Acrobot-v1", "MountainCar-v0"}
     assert shared | {"MountainCarContinuous-v0"} <= set(gymnax.registered_envs)
     assert "CartPole" not in gymnax.registered_envs  # one id per environment
+    assert gymnax.registered_envs[:3] == [
+        "CartPole-v1",
+        "Pendulum-v1",
+        "Acrobot-v1",
+    ]  # gymnax's order
 
 
 def test_gymnax_1_code_gets_six_values_from_v1_and_both_agree():

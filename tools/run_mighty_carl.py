@@ -5,8 +5,9 @@ factory ``mighty/mighty_utils/envs.py:make_carl_env`` (context distributions fro
 ``ContextSampler`` reseeded between the training and evaluation sets, selectors, the environment wrapped
 in its ``CARLVectorEnvSimulator``) and its example ``examples/sample_carl_context_sets.py``. Both are read
 from FOLDER (the unpacked wheel), ``carl`` becomes ``contextrl.carl``, and they run here: the factory on
-two configurations, its training environment stepped for 600 random actions through Mighty's wrapper, the
-evaluation one reset; the example writes its context sets to JSON. (A string ``context_selector`` in the
+two configurations written here and on the one CARL configuration Mighty ships
+(``configs/environment/carl_walkers/ant_goals.yaml``: Brax Ant with sampled goals), its training
+environment stepped for 600 random actions through Mighty's wrapper, the evaluation one reset; the example writes its context sets to JSON. (A string ``context_selector`` in the
 configuration fails on CARL 1.1.1 itself, which builds the evaluation environment before turning the
 string into a selector, so none is given.) With ``--original`` and CARL's interpreter, the same code runs
 unchanged against CARL 1.1.1, for comparison. Mighty's package ``__init__`` files are
@@ -32,6 +33,7 @@ CARL = re.compile(r"(?<![\w.])carl(?=[.\s]|$)", re.MULTILINE)
 
 # Mighty's make_carl_env on two configurations as its YAML configs spell them, then its wrapper stepped.
 FACTORY = """
+import importlib.util
 import json
 import numpy as np
 from omegaconf import OmegaConf
@@ -45,6 +47,9 @@ configs = [
     {"env": "CARLPendulum", "n_episodes_eval": 1, "env_kwargs": {
         "context_feature_args": {"m": ["uniform-float", 0.5, 1.5]}}},
 ]
+if importlib.util.find_spec("brax"):  # Mighty's own configuration, with Brax installed
+    shipped = OmegaConf.load("mighty/configs/environment/carl_walkers/ant_goals.yaml")
+    configs.append({"env": shipped.env, "n_episodes_eval": 1, "env_kwargs": shipped.env_kwargs})
 for config in configs:
     env, make_eval_env, eval_default = make_carl_env(OmegaConf.create(config))
     rng = np.random.default_rng(0)
@@ -59,8 +64,7 @@ for config in configs:
     inner = env.envs[0]
     print(json.dumps({"env": config["env"], "episodes_ended": ends, "contexts": len(inner.contexts),
                       "eval_episodes": eval_default, "obs_keys": sorted(obs[0]),
-                      "drawn": [round(f(float(c.get("gravity", c.get("m"))) for c in
-                                        inner.contexts.values()), 3) for f in (min, max)]}))
+                      "first_context": inner.contexts[0]}))
 """
 
 
@@ -78,6 +82,10 @@ def prepared(folder: Path, work: Path, original: bool) -> None:
     for name in ("envs.py", "wrappers.py"):
         text = (folder / "mighty" / "mighty_utils" / name).read_text(encoding="utf-8")
         (package / name).write_text(rewrite(text), encoding="utf-8")
+    configs = work / "mighty" / "configs" / "environment" / "carl_walkers"
+    configs.mkdir(parents=True)
+    shipped = folder / "mighty" / "configs" / "environment" / "carl_walkers" / "ant_goals.yaml"
+    (configs / "ant_goals.yaml").write_text(shipped.read_text(encoding="utf-8"))
     example = (folder / "examples" / "sample_carl_context_sets.py").read_text(encoding="utf-8")
     (work / "sample_carl_context_sets.py").write_text(rewrite(example))
     (work / "factory.py").write_text(FACTORY)

@@ -42,6 +42,6 @@ contextrl, and each difference is listed here:
 - ``contexts`` values are stored at the precision the environment uses (float32).
 """
 
-from contextrl.carl.envs.carl_env import register_carl_ids
+from contextrl.carl.envs.registry import register_carl_ids
 
 register_carl_ids()

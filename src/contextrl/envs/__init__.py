@@ -46,6 +46,7 @@ BRAX_ENVIRONMENTS = (
     "Pusher",
 )
 REACHING_ENVIRONMENTS = ("Fetch", "Grasp", "Ur5e")
+CARL_SPELLINGS = {"HalfCheetah": ("CARLBraxHalfcheetah",)}  # CARL 1.1.1's own class name
 
 
 def _make_brax(name: str, **kwargs):
@@ -58,7 +59,8 @@ def _make_brax(name: str, **kwargs):
 if importlib.util.find_spec("brax") is not None:  # the optional `brax` extra
     for _name in BRAX_ENVIRONMENTS:
         _factory = functools.partial(_make_brax, _name)
-        register(f"Brax{_name}", _factory, family="brax", aliases=(f"CARLBrax{_name}",))
+        carl_names = (f"CARLBrax{_name}", *CARL_SPELLINGS.get(_name, ()))
+        register(f"Brax{_name}", _factory, family="brax", aliases=carl_names)
     # The paper's target-reaching tasks, rebuilt on MJX: ids and CARL's names as in CARL 0.x.
     for _name in REACHING_ENVIRONMENTS:
         _factory = functools.partial(_make_brax, _name)

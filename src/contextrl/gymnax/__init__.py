@@ -165,6 +165,8 @@ GYMNAX_IDS = {
     "MountainCar": "MountainCar-v0",
     "MountainCarContinuous": "MountainCarContinuous-v0",
 }
-# What ``make`` serves, as gymnax's ``registered_envs`` is a list: gymnax's ids where gymnax has the
-# environment, contextrl's for the other JAX environments.
-registered_envs: list[str] = [GYMNAX_IDS.get(env_id, env_id) for env_id in _jax_ids()]
+# What ``make`` serves, as gymnax's ``registered_envs`` is a list: first the environments gymnax has, by
+# gymnax's ids in gymnax's order, then contextrl's other JAX environments.
+registered_envs: list[str] = list(GYMNAX_IDS.values()) + [
+    env_id for env_id in _jax_ids() if env_id not in GYMNAX_IDS
+]

@@ -259,15 +259,6 @@ def feature_of(core: CoreSpace, name: str) -> ContextFeature:
     return kind(name, declared.lower, declared.upper, declared.default)
 
 
-def drawn_from(core: CoreSpace, features: list[ContextFeature]) -> dict[str, Any]:
-    """The distribution spec of CARL ``features`` over contextrl's space ``core``, checked."""
-    spec = {}
-    for declared in features:
-        name = core.resolve(declared.name)
-        spec[name] = declared.within(core.features[name].bounds)
-    return distributions.check_spec(core, spec)
-
-
 def plain_values(core: CoreSpace, context) -> Context:
     """Feature name → Python value of one contextrl context, printed as the float32 it holds."""
     values = core.to_dict(context)
@@ -280,10 +271,54 @@ def plain_values(core: CoreSpace, context) -> Context:
 class ContextSpace:
     """The contexts of one environment, as CARL's ``ContextSpace`` shows them."""
 
-    def __init__(self, context_space: Mapping[str, ContextFeature], core: CoreSpace | None = None):
-        """``core``: a registered environment's space; None declares one from ``context_space``."""
+    def __init__(
+        self,
+        context_space: Mapping[str, ContextFeature],
+        core: CoreSpace | None = None,
+        codes: Mapping[str, Mapping[Any, str]] | None = None,
+    ):
+        """``core``: a registered environment's space; None declares one from ``context_space``.
+        ``codes``: for a categorical feature CARL writes as numbers (Brax's ``target_direction``), CARL's
+        value → contextrl's choice; contexts going in and out are translated."""
         self.context_space = dict(context_space)
         self.core = declared_space(self.context_space) if core is None else core
+        self.codes = {name: dict(table) for name, table in (codes or {}).items()}
+
+    def inward(self, context: Mapping[str, Any]) -> dict[str, Any]:
+        """A context with CARL's codes replaced by contextrl's choices (a choice name passes as it is)."""
+        context = dict(context)
+        for name, table in self.codes.items():
+            value = context.get(name)
+            if value is None or isinstance(value, str):
+                continue
+            if isinstance(value, bool) or value not in table:
+                raise ContextError(f"{name}: {value!r} is not one of CARL's codes {list(table)}")
+            context[name] = table[value]
+        return context
+
+    def outward(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Feature values (categorical ones by choice name) with CARL's codes where CARL has them."""
+        values = dict(values)
+        for name, table in self.codes.items():
+            if name in values:
+                values[name] = {choice: code for code, choice in table.items()}[values[name]]
+        return values
+
+    def plain(self, context) -> Context:
+        """Feature name → Python value of one contextrl context, with CARL's codes where CARL has them."""
+        return self.outward(plain_values(self.core, context))
+
+    def spec_of(self, features: list[ContextFeature]) -> dict[str, Any]:
+        """The distribution spec of CARL ``features`` over this space, checked (CARL's codes among a
+        categorical feature's choices translated)."""
+        spec = {}
+        for declared in features:
+            name = self.core.resolve(declared.name)
+            if name in self.codes and isinstance(declared, CategoricalContextFeature):
+                choices = [self.inward({name: c})[name] for c in declared.choices]
+                declared = dataclasses.replace(declared, choices=choices)
+            spec[name] = declared.within(self.core.features[name].bounds)
+        return distributions.check_spec(self.core, spec)
 
     @property
     def context_feature_names(self) -> list[str]:
@@ -291,7 +326,7 @@ class ContextSpace:
 
     def insert_defaults(self, context: Context, context_keys: list[str] | None = None) -> Context:
         """``context`` (validated) over the defaults, optionally only the features in ``context_keys``."""
-        self.core.make(**context)
+        self.core.make(**self.inward(context))
         defaults = self.get_default_context()
         if context_keys:
             defaults = {name: defaults[self.core.resolve(name)] for name in context_keys}
@@ -300,13 +335,13 @@ class ContextSpace:
     def verify_context(self, context: Context) -> bool:
         """Whether every feature of ``context`` exists and its value is valid."""
         try:
-            self.core.make(**context)
+            self.core.make(**self.inward(context))
         except ContextError:
             return False
         return True
 
     def get_default_context(self) -> Context:
-        return plain_values(self.core, self.core.default())
+        return self.plain(self.core.default())
 
     def get_lower_and_upper_bound(self, context_feature_name: str) -> tuple[float, float]:
         """The bounds as declared (an infinite one stays infinite); a categorical feature's index range."""
@@ -338,7 +373,7 @@ class ContextSpace:
         """Contexts drawn uniformly over the bounds of ``context_keys`` (all features if None), the rest
         at their defaults; seeded. One context for ``size=1``, else a list."""
         names = [self.core.resolve(name) for name in (context_keys or self.core.names)]
-        spec = drawn_from(self.core, [self.context_space[name] for name in names])
+        spec = self.spec_of([self.context_space[name] for name in names])
         batch = distributions.sample(self.core, spec, size, jax.random.key(seed))
-        contexts = [plain_values(self.core, batch[i]) for i in range(size)]
+        contexts = [self.plain(batch[i]) for i in range(size)]
         return contexts[0] if size == 1 else contexts

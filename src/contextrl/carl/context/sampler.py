@@ -10,12 +10,7 @@ from collections.abc import Mapping, Sequence
 
 import jax
 
-from contextrl.carl.context.context_space import (
-    ContextFeature,
-    ContextSpace,
-    drawn_from,
-    plain_values,
-)
+from contextrl.carl.context.context_space import ContextFeature, ContextSpace
 from contextrl.carl.utils.types import Context, Contexts
 from contextrl.context.distributions import draw
 from contextrl.context.features import ContextError
@@ -44,7 +39,7 @@ class ContextSampler:
         self.context_distributions = list(context_distributions)
         self.context_space = context_space
         self.name = name
-        self.spec = drawn_from(context_space.core, self.context_distributions)
+        self.spec = context_space.spec_of(self.context_distributions)
         self.context_feature_names = list(self.spec)
         self.seed(seed)
 
@@ -70,4 +65,4 @@ class ContextSampler:
         self._calls += 1
         core = self.context_space.core
         batch = draw(core, self.spec, size, key)
-        return [plain_values(core, batch[i]) for i in range(size)]
+        return [self.context_space.plain(batch[i]) for i in range(size)]

@@ -7,7 +7,7 @@ class is ``contextrl.carl.envs.carl_env.CARLEnv``); building them reads only the
 simulator.
 """
 
-from contextrl.carl.envs.carl_env import carl_class, carl_classes, carl_names
+from contextrl.carl.envs.registry import carl_class, carl_classes, carl_names
 
 globals().update(carl_classes())
 

@@ -2,15 +2,15 @@
 
 ``CARLEnv`` turns CARL's constructor into a ``ContextualGymEnv`` (which parses and validates the context
 set, chooses each episode's context and runs the episode) and reshapes its observation into CARL's
-``{"obs": ..., "context": ...}``. One class per environment is made from the registry: every contextrl
-environment registered with a ``CARL…`` alias has its CARL class, with nothing to write per environment.
+``{"obs": ..., "context": ...}``. The classes of the environments are made from these bases in
+``contextrl.carl.envs.registry``.
 """
 
 from __future__ import annotations
 
 import functools
 import inspect
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium
@@ -20,7 +20,6 @@ from contextrl.carl.context.context_space import (
     ContextFeature,
     ContextSpace,
     feature_of,
-    plain_values,
 )
 from contextrl.carl.context.selection import (
     BUILT_IN,
@@ -34,14 +33,19 @@ from contextrl.context.features import ContextSpace as CoreSpace
 from contextrl.context.schedule import resolve_contexts
 from contextrl.core.env import Env
 from contextrl.core.host import HostEnv
-from contextrl.core.registry import registered, spec
+from contextrl.core.registry import spec
 from contextrl.gymnasium.env import ContextualGymEnv
 
 
 @functools.cache
-def core_space(env_id: str) -> CoreSpace:
-    """The context space of a registered environment (built once per id)."""
-    return spec(env_id).factory().context_space
+def built(env_id: str, **options: Any) -> Env | HostEnv:
+    """A registered environment with ``options`` (built once per id and options)."""
+    return spec(env_id).factory(**options)
+
+
+def core_space(env_id: str, **options: Any) -> CoreSpace:
+    """The context space of a registered environment."""
+    return built(env_id, **options).context_space
 
 
 class CARLEnv(gymnasium.Wrapper):
@@ -131,8 +135,13 @@ class CARLEnv(gymnasium.Wrapper):
                 "contexts must be a mapping id -> dict of feature values (CARL's form), "
                 f"got {contexts!r}"
             )
+        space = self._space()
+        contexts = {
+            key: value if isinstance(value, ContextBase) else space.inward(value)
+            for key, value in contexts.items()
+        }
         members = resolve_contexts(self._core(), contexts).provider.contexts
-        return {key: plain_values(self._core(), members[i]) for i, key in enumerate(contexts)}
+        return {key: space.plain(members[i]) for i, key in enumerate(contexts)}
 
     def _selector(self, selector, selector_kwargs) -> AbstractSelector:
         filled = self._contexts
@@ -158,14 +167,21 @@ class CARLEnv(gymnasium.Wrapper):
         return type(self.context_selector) in BUILT_IN
 
     def _build(self) -> ContextualGymEnv:
+        space = self._space()
+        return self._gym_env({key: space.inward(c) for key, c in self._contexts.items()})
+
+    def _gym_env(self, contexts: Contexts, **options: Any) -> ContextualGymEnv:
+        """contextrl's gymnasium environment running ``contexts`` (contextrl's values), built with
+        the family ``options``."""
         selector = self.context_selector
         return ContextualGymEnv(
             self._source,
-            contexts=self._contexts,
+            contexts=contexts,
             context_selector=selector.core_selector() if self._core_chooses else "round_robin",
             obs_context_features=self.obs_context_features or None,
             obs_context_as_dict=bool(self.obs_context_features),
             **self._gym_kwargs,
+            **options,
         )
 
     def _base_space(self) -> gymnasium.spaces.Box:
@@ -202,7 +218,14 @@ class CARLEnv(gymnasium.Wrapper):
 
     @classmethod
     def get_default_context(cls) -> Context:
-        return cls.get_context_space().get_default_context()
+        return cls._space().get_default_context()
+
+    @classmethod
+    def _space(cls) -> ContextSpace:
+        """``get_context_space()``, built once per class."""
+        if "_context_space_once" not in cls.__dict__:
+            cls._context_space_once = cls.get_context_space()
+        return cls._context_space_once
 
     # ---- attributes -------------------------------------------------------------------------------------
     @property
@@ -261,7 +284,7 @@ class CARLEnv(gymnasium.Wrapper):
                 options["context_id"] = chosen
         obs, info = self.env.reset(seed=seed, options=options or None)
         self._context_id = info["context_id"]
-        self._context = info["context"]
+        self._context = self._space().outward(info["context"])
         if not asked and self._context_id in self.contexts:
             self.context_selector.record(self._context_id)
         return self._observation(obs), info
@@ -288,62 +311,3 @@ class CARLGymnasiumEnv(CARLEnv):
 
 class CARLDmcEnv(CARLEnv):
     """The base of CARL's dm_control environments."""
-
-
-@functools.cache
-def carl_class(name: str) -> type[CARLEnv]:
-    """The CARL class of a registered ``CARL…`` alias (``CARLCartPole``, ``CARLDmcWalkerEnv``)."""
-    names = carl_names()
-    if name not in names:
-        raise AttributeError(f"no CARL environment {name!r}; available: {names}")
-    env_spec = spec(name)
-    base = CARLDmcEnv if env_spec.family == "dmc" else CARLGymnasiumEnv
-    return type(
-        name,
-        (base,),
-        {
-            "env_id": env_spec.id,
-            "__doc__": f"CARL's {name} running contextrl's {env_spec.id} (see CARLEnv).",
-            "__module__": "contextrl.carl.envs",
-        },
-    )
-
-
-def carl_names(family: str | None = None) -> list[str]:
-    """Every registered ``CARL…`` alias, optionally of one family."""
-    return [
-        alias
-        for env_id in registered(family)
-        for alias in spec(env_id).aliases
-        if alias.startswith("CARL")
-    ]
-
-
-def carl_classes(*families: str) -> dict[str, type[CARLEnv]]:
-    """Name → CARL class for some families (every family when none): a CARL module's attributes."""
-    names = [n for family in families for n in carl_names(family)] if families else carl_names()
-    return {name: carl_class(name) for name in names}
-
-
-def family_getattr(*families: str) -> Callable[[str], type[CARLEnv]]:
-    """A module ``__getattr__`` for names that are not among its classes: an error listing them."""
-
-    def module_getattr(name: str) -> type[CARLEnv]:
-        names = [n for family in families for n in carl_names(family)]
-        if name not in names:
-            raise AttributeError(f"no CARL environment {name!r} here; available: {names}")
-        return carl_class(name)
-
-    return module_getattr
-
-
-def register_carl_ids() -> list[str]:
-    """Register ``carl/<Name>-v0`` with gymnasium for every CARL class not yet known to it, as importing
-    CARL does, so ``gymnasium.make("carl/CARLCartPole-v0")`` builds the face's class; returns the new ids."""
-    added = []
-    for name in carl_names():
-        gymnasium_id = f"carl/{name}-v0"
-        if gymnasium_id not in gymnasium.registry:
-            gymnasium.register(gymnasium_id, entry_point=f"contextrl.carl.envs:{name}")
-            added.append(gymnasium_id)
-    return added

@@ -1,6 +1,7 @@
 """CARL's ``carl.envs.gymnasium``: the gymnasium-family environments (classic control, Box2D)."""
 
-from contextrl.carl.envs.carl_env import CARLGymnasiumEnv, carl_classes, carl_names, family_getattr
+from contextrl.carl.envs.carl_env import CARLGymnasiumEnv
+from contextrl.carl.envs.registry import carl_classes, carl_names, family_getattr
 
 FAMILIES = ("classic_control", "box2d")
 

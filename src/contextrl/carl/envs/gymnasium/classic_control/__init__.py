@@ -1,6 +1,6 @@
 """CARL's ``carl.envs.gymnasium.classic_control``."""
 
-from contextrl.carl.envs.carl_env import carl_class
+from contextrl.carl.envs.registry import carl_class
 
 CARLAcrobot = carl_class("CARLAcrobot")
 CARLCartPole = carl_class("CARLCartPole")
