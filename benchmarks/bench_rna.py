@@ -2,9 +2,10 @@
 
     .venv/bin/python benchmarks/bench_rna.py [--scale 1.0]
 
-CARL's RNA environment does not run (see the issue), so the peer is the fold: an episode designs a
-sequence step by step and folds it once (``mutation_threshold=0``: no local improvement), so no
-environment can run more episodes per second than ViennaRNA folds per second at that length. For
+CARL's RNA environment does not run (its ``step`` unpacks four values from a call that returns three),
+so the peer is the fold: an episode designs a sequence step by step and folds it once
+(``mutation_threshold=0``: no local improvement), so no environment can run more episodes per second
+than ViennaRNA folds per second at that length. For
 synthetic targets of 20, 50, 100, 200 and 400 nt (seeded, fixed length), random actions, the table
 gives folds/s of bare ``RNA.fold`` on the designed sequences, episodes/s of the environment stepped
 directly (``reset_physics``/``step_physics``) and through the gymnasium adapter, and the share of each

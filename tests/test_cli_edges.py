@@ -3,7 +3,7 @@ defaults that fit the environment, ``report`` refusing runs that do not share an
 warn verdict in the terminal, messages that say what was expected, ``--version`` / ``python -m
 contextrl``, one-seed intervals said as such, and third-party noise kept out of the terminal.
 
-Cheap by construction: dry runs without calibration, runs of zero chunks, constructed result tables;
+Cheap by construction: dry runs (nothing compiled), runs of zero chunks, constructed result tables;
 nothing here trains an agent.
 """
 
@@ -60,7 +60,7 @@ def python(*argv, cwd) -> subprocess.CompletedProcess:
 
 
 # ---- protocol defaults come from the environment ---------------------------------------------
-DRY = ["--dry-run", "--no-calibration"]
+DRY = ["--dry-run"]
 
 
 @pytest.mark.parametrize("protocol", ["visibility", "optimality_gap", "train_test", "hpo"])

@@ -16,7 +16,7 @@ from contextrl.cli import main
 from contextrl.context import ContextError, Uniform
 from contextrl.experiments import paper
 
-DRY = ["--dry-run", "--no-calibration"]
+DRY = ["--dry-run"]
 
 
 def cli(capsys, *argv) -> tuple[int, str, str]:
@@ -61,6 +61,7 @@ def refused(capsys, fragments, *argv) -> str:
         (["paper", "list", "ecdf_pendulum"], ["paper list: takes no figure"]),
         (["docs"], ["the following arguments are required: --out"]),
         (["run", "visibility", "--quiet", "--verbose", *DRY], ["--quiet and --verbose: give one"]),
+        (["run", "visibility", "--estimate"], ["--estimate goes with --dry-run"]),
         (
             ["run", "visibility", "--out", "somewhere", "--root", "elsewhere", *DRY],
             ["--out somewhere names the run directory, so --root elsewhere would be ignored"],

@@ -1,10 +1,11 @@
 """The import graph of src/contextrl reads in one direction: no cycles, and no module-level import runs
-up a layer of DESIGN.md's picture (data flows down, nothing imports upward).
+up a layer of docs/architecture.md's table (data flows down, nothing imports upward).
 
 The graph is read statically (tools/import_graph.py), so these tests import none of the modules.
 """
 
 import importlib.util
+import re
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,7 @@ _spec = importlib.util.spec_from_file_location("import_graph", ROOT / "tools" / 
 import_graph = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(import_graph)
 
-# DESIGN.md's layers, lowest first, as package prefixes. A module may import its own layer and those
+# The layers of docs/architecture.md, lowest first, as package prefixes. A module may import its own layer and those
 # below it. ``contextrl`` is the package itself (matched exactly): it registers the environments and
 # their gymnasium ids, so it sits with the faces. render draws the families' states (the box2d family
 # draws on its canvas), so it sits beside envs; testing is the env checker users run on their own envs.
@@ -146,3 +147,11 @@ def test_the_checker_finds_a_cycle(tmp_path):
     ]
     assert import_graph.cycles(edges) == [["contextrl.a", "contextrl.b"]]
     assert import_graph.cycles(edges, include_deferred=False) == []
+
+
+def test_the_architecture_page_shows_these_layers():
+    """docs/architecture.md's table lists the layers top down with exactly the packages above."""
+    page = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    rows = [line.split("|")[1:3] for line in page.splitlines() if line.startswith("| ")][2:]
+    shown = [(name.strip(), re.findall(r"`([\w.]+)`", packages)) for name, packages in rows]
+    assert shown == [(name, prefixes) for name, prefixes in reversed(LAYERS)]

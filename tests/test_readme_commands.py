@@ -1,5 +1,5 @@
 """The ``contextrl run`` lines of the README and of the documentation site's pages are accepted as
-written: each one that starts a new run is checked with ``--dry-run --no-calibration``, which validates
+written: each one that starts a new run is checked with ``--dry-run``, which validates
 the whole spec exactly as the run does and trains nothing. (The Python blocks run in test_readme.py and
 test_docs.py; `make run` itself runs in .ci/run after the suite.)"""
 
@@ -44,5 +44,5 @@ def test_the_pages_show_run_commands():
 def test_run_command_is_valid(command, monkeypatch, capsys):
     monkeypatch.chdir(ROOT)  # the pages' paths (examples/…) are relative to the project
     argv = shlex.split(command)[1:]
-    assert main([*argv, "--dry-run", "--no-calibration"]) == 0, capsys.readouterr().err
+    assert main([*argv, "--dry-run"]) == 0, capsys.readouterr().err
     assert "trials:" in capsys.readouterr().out

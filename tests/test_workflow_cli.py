@@ -155,8 +155,7 @@ def test_yaml_numbers_vary_merge_and_dry_run(tmp_path):
         "train:\n  length: {uniform: [0.3, 0.6]}\n  gravity: {uniform: [5, 10]}\n",
     )
     result = contextrl(
-        "run", "--config", config, "--vary", "length=uniform:0.2:0.4", "--dry-run",
-        "--no-calibration", cwd=tmp_path,
+        "run", "--config", config, "--vary", "length=uniform:0.2:0.4", "--dry-run", cwd=tmp_path,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "train keeps ['gravity'] from the config and replaces ['length']" in result.stderr
@@ -164,13 +163,14 @@ def test_yaml_numbers_vary_merge_and_dry_run(tmp_path):
     assert "trials: 3 (visibility)" in out and "chunks: 2 (up to 2 trials" in out
     # 3 trials x 100,000 steps; evaluation at most 3 x (4 test + 2 x 16 own) contexts x 2 x 50 steps
     assert "environment steps: 300,000 training, at most 10,800 evaluation" in out
+    assert "results: runs/" in out and "time: not estimated (--estimate times it)" in out
     assert set(tmp_path.iterdir()) == {config}
 
 
 def test_dry_run_calibrates_a_time_estimate(tmp_path):
     result = contextrl(
         "run", "visibility", *TINY_RANDOM, "--variants", "hidden,concat_all", "--dry-run",
-        "--set", "num_train_contexts=2", "--set", "num_test_contexts=2", cwd=tmp_path,
+        "--estimate", "--set", "num_train_contexts=2", "--set", "num_test_contexts=2", cwd=tmp_path,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "trials: 2" in result.stdout and "chunks: 2" in result.stdout
@@ -186,7 +186,7 @@ def test_dry_run_of_a_trained_agent_times_a_short_budget_and_writes_nothing(tmp_
         "run", "visibility", "--agent", "ppo", "--timesteps", "40000", "--agent-option",
         "num_steps=16", "--variants", "hidden", "--seeds", "1", "--max-steps", "20", "--episodes",
         "1", "--set", "num_train_contexts=2", "--set", "num_test_contexts=2", "--dry-run",
-        cwd=tmp_path,
+        "--estimate", cwd=tmp_path,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "run at 2,000 steps" in result.stdout, result.stdout
@@ -200,7 +200,7 @@ def test_dry_run_estimates_from_an_earlier_run_of_the_same_spec(tmp_path):
     argv += ["--set", "num_test_contexts=2"]
     assert contextrl(*argv, "--quiet", cwd=tmp_path).returncode == 0
     (earlier,) = (tmp_path / "runs").iterdir()
-    result = contextrl(*argv, "--seed", "7", "--dry-run", cwd=tmp_path)
+    result = contextrl(*argv, "--seed", "7", "--dry-run", "--estimate", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert (
         f"timings of 1 earlier run(s) of this spec in runs (newest: {earlier.relative_to(tmp_path)}"

@@ -2,20 +2,40 @@
 2-D heat maps with the training region outlined, interval plots and an environment-property radar.
 
 Every function returns a matplotlib Figure (Agg backend, no display needed); :func:`to_png` turns one
-into bytes for the HTML report.
+into bytes for the HTML report. matplotlib is imported with the first figure: it takes about a second,
+which a command that draws nothing (a dry run, ``list``) does not pay.
 """
 
 from __future__ import annotations
 
 import io
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from contextrl.analysis.intervals import Interval, curve_band  # noqa: E402
+from contextrl.analysis.intervals import Interval, curve_band
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def _matplotlib() -> Any:
+    """The matplotlib module, with the parts the figures use (colour maps, patches) loaded."""
+    import matplotlib
+    import matplotlib.patches  # noqa: F401  (loads matplotlib.patches as an attribute)
+
+    return matplotlib
+
+
+def _figure(figsize=None, layout=None) -> Figure:
+    """A new Figure drawing to memory, outside pyplot (no backend chosen, whatever the process uses)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(figure)
+    return figure
 
 
 def to_png(figure: Figure, dpi: int = 100) -> bytes:
@@ -27,8 +47,7 @@ def to_png(figure: Figure, dpi: int = 100) -> bytes:
 
 def _subplots(rows: int = 1, columns: int = 1, figsize=None, layout=None, **kwargs):
     """A new Figure and its axes, like ``pyplot.subplots`` but outside pyplot (no backend chosen)."""
-    figure = Figure(figsize=figsize, layout=layout)
-    FigureCanvasAgg(figure)  # draws to memory, whatever backend the process uses
+    figure = _figure(figsize, layout)
     return figure, figure.subplots(rows, columns, **kwargs)
 
 
@@ -64,6 +83,7 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
         sharey=True,
         layout="constrained",
     )
+    matplotlib = _matplotlib()
     cmap = matplotlib.colormaps["viridis"]
     for axis, name in zip(axes.ravel(), features, strict=False):
         magnitudes = sorted(returns[name])
@@ -179,7 +199,7 @@ def heatmap(
     figure.colorbar(mesh, ax=axis, label="mean return")
     for x0, x1, y0, y1 in regions:
         axis.add_patch(
-            matplotlib.patches.Rectangle(
+            _matplotlib().patches.Rectangle(
                 (x0, y0), max(x1 - x0, 1e-9), max(y1 - y0, 1e-9), fill=False, color="red", lw=2
             )
         )
@@ -218,8 +238,7 @@ def radar(properties: Mapping[str, Mapping[str, float]], title: str = ""):
     top = {a: max(float(properties[n][a]) for n in names) or 1.0 for a in axes_names}
     angles = np.linspace(0, 2 * np.pi, len(axes_names), endpoint=False)
     closed = np.append(angles, angles[0])
-    figure = Figure(figsize=(5, 5))
-    FigureCanvasAgg(figure)
+    figure = _figure(figsize=(5, 5))
     axis = figure.add_subplot(projection="polar")
     for name in names:
         values = [float(properties[name][a]) / top[a] for a in axes_names]

@@ -256,9 +256,10 @@ def _create_run(spec, args) -> RunDir:
         raise _unwritable(args, error.strerror or str(error), error.filename) from None
 
 
-def _check_new_run(spec, args) -> None:
-    """What :func:`_create_run` refuses, found without creating anything (a dry run): a folder that
-    holds a run or is a file, or whose nearest existing parent is not a writable folder."""
+def _check_new_run(spec, args) -> Path:
+    """The folder :func:`_create_run` would make, checked without creating anything (a dry run): one
+    that holds a run or is a file, or whose nearest existing parent is not a writable folder, is
+    refused."""
     try:
         path = RunDir.new_path(spec, root=args.root, out=args.out)
     except FileExistsError as error:
@@ -270,10 +271,13 @@ def _check_new_run(spec, args) -> None:
         raise _unwritable(args, "Not a directory", path)
     if not os.access(parent, os.W_OK):
         raise _unwritable(args, "Permission denied", parent)
+    return path
 
 
 def _refuse_conflicts(args: argparse.Namespace) -> None:
     """Flags that cannot both apply, refused rather than one of them ignored."""
+    if args.estimate and not args.dry_run:
+        raise SpecError("--estimate goes with --dry-run (a run measures its own time)")
     if args.quiet and args.verbose:
         raise SpecError(
             "--quiet and --verbose: give one (quiet: no progress lines; verbose: Ray's)"
@@ -313,8 +317,8 @@ def run_command(args: argparse.Namespace) -> int:
             verbose=args.verbose,
         )
         if args.dry_run:  # checked as the run is up to here; then nothing is created
-            _check_new_run(spec, args)
-            print(describe_plan(spec, calibrate_time=not args.no_calibration, root=args.root))
+            where = _check_new_run(spec, args)
+            print(describe_plan(spec, where, estimate=args.estimate, root=args.root))
             return 0
         if not args.resume:
             run = _create_run(spec, args)
@@ -433,13 +437,13 @@ def add_run(subparsers) -> None:
         "--dry-run",
         action="store_true",
         help="check the options as the run does, then print trials, chunks, environment steps and "
-        "a time estimate (from earlier runs of this spec under --root, else one short timed "
-        "call); create and train nothing",
+        "where the results would go; create, compile and train nothing",
     )
     parser.add_argument(
-        "--no-calibration",
+        "--estimate",
         action="store_true",
-        help="with --dry-run: no time estimate (nothing compiled or timed)",
+        help="with --dry-run: also estimate the time, from earlier runs of this spec under --root "
+        "(free), else from one short compiled and timed call",
     )
     parser.add_argument(
         "--log",

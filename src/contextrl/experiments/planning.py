@@ -162,12 +162,18 @@ def _estimate(spec: CommonSpec, plan: Plan, root: str | os.PathLike) -> tuple[fl
 
 
 def describe_plan(
-    spec: CommonSpec, *, calibrate_time: bool = True, root: str | os.PathLike = "runs"
+    spec: CommonSpec,
+    where: str | os.PathLike,
+    *,
+    estimate: bool = False,
+    root: str | os.PathLike = "runs",
 ) -> str:
-    """The dry-run text: trials, chunks, environment steps and (unless ``calibrate_time`` is off) a
-    time estimate, from earlier runs of this spec under ``root`` or from a short timed call."""
+    """The dry-run text: trials, chunks, environment steps, the run folder ``where`` and, with
+    ``estimate``, a time estimate from earlier runs of this spec under ``root`` or from a short
+    timed call (the only part that compiles anything)."""
     plan = expand(spec)
     lines = [f"dry run of {spec.protocol} ({spec.name}); nothing is written"]
+    lines.append(f"  results: {where} (report.html there when the run ends)")
     if not plan.trials:
         lines.append(
             f"  no chunks of trials: the {spec.protocol} protocol runs its own schedule "
@@ -195,12 +201,13 @@ def describe_plan(
     lines.append(
         f"  environment steps: {train_steps:,} training, at most {eval_steps:,} evaluation"
     )
-    if not calibrate_time:
+    if not estimate:
+        lines.append("  time: not estimated (--estimate times it)")
         return "\n".join(lines)
-    estimate, how = _estimate(spec, plan, root)
+    seconds, how = _estimate(spec, plan, root)
     lines.append(how)
     lines.append(
-        f"  estimated time: {duration(estimate)} with the local executor on this machine "
+        f"  estimated time: {duration(seconds)} with the local executor on this machine "
         "(a rough extrapolation; Ray spreads chunks over workers)"
     )
     return "\n".join(lines)
