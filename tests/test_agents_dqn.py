@@ -141,7 +141,7 @@ def test_specialists_and_small_runs_record_their_contexts(cartpole):
         (dict(exploration="greedy"), "exploration: unknown 'greedy'"),
         (dict(distributional=True, v_min=10.0, v_max=0.0), "C51 needs v_min < v_max"),
         (dict(tau=0.0), "tau must be > 0"),
-        (dict(total_timesteps=1000, learning_starts=5000), "leaves no gradient step"),
+        (dict(total_timesteps=1000, learning_starts=5000), "leaves no full logging period"),
         (dict(variant="all"), "variant: unknown 'all'; choose one of"),
     ],
 )

@@ -11,9 +11,10 @@ from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.checkpoint import checkpoint_info, load_checkpoint, save_checkpoint
 from contextrl.agents.common import Policy
 from contextrl.agents.evaluation import evaluate, evaluate_episodes
-from contextrl.agents.networks import VARIANTS, ConfigError
+from contextrl.agents.networks import VARIANTS
 from contextrl.agents.registry import Agent, get_agent, register_agent, registered_agents
 from contextrl.agents.saved import SavedPolicy, load_policy
+from contextrl.agents.validation import ConfigError
 
 __all__ = [
     "Agent",

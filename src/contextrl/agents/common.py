@@ -18,14 +18,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.agents.networks import (
-    ConfigError,
     ContextInput,
-    check_fraction,
     check_hidden_sizes,
-    check_positive,
     check_variant,
     context_input,
 )
+from contextrl.agents.validation import ConfigError, check_fraction, check_positive
 from contextrl.context.features import ContextBase, ContextSpace
 from contextrl.context.selectors import FromSet, make_selector
 from contextrl.core.contextual import ContextualEnv, make_provider

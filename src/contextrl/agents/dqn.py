@@ -22,31 +22,23 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from contextrl.agents.common import (
-    AgentConfig,
-    EpisodeLog,
-    Policy,
-    Progress,
-    TrainResult,
-    agent_inputs,
-    contextual_env_factory,
-    num_context_ids,
-)
-from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
-from contextrl.agents.networks import (
-    ConditionedMLP,
+from contextrl.agents import offpolicy
+from contextrl.agents.common import Policy, TrainResult, agent_inputs
+from contextrl.agents.host import HostLearner, train_on_host
+from contextrl.agents.networks import ConditionedMLP, ContextInput
+from contextrl.agents.replay import Replay, transition, transition_example
+from contextrl.agents.validation import (
     ConfigError,
-    ContextInput,
     check_fraction,
     check_positive,
+    flat_observation_size,
 )
-from contextrl.agents.replay import Replay, transition, transition_example
 
 EXPLORATIONS = ("epsilon", "boltzmann")
 
 
 @dataclasses.dataclass(frozen=True)
-class DQNConfig(AgentConfig):
+class DQNConfig(offpolicy.OffPolicyConfig):
     """DQN / C51 hyper-parameters (defaults: a fast CartPole setting; see :func:`paper_config`)."""
 
     hidden_sizes: tuple[int, ...] = (128, 128)
@@ -93,23 +85,12 @@ class DQNConfig(AgentConfig):
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""
         super().validate()
-        for name in (
-            "buffer_size",
-            "batch_size",
-            "n_step",
-            "train_frequency",
-            "target_update_interval",
-            "num_atoms",
-            "log_every",
-        ):
+        for name in ("train_frequency", "target_update_interval", "num_atoms"):
             check_positive(name, getattr(self, name), integer=True)
-        check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
         for name in ("learning_rate", "max_grad_norm", "temperature"):
             check_positive(name, getattr(self, name))
-        for name in ("tau", "start_epsilon", "end_epsilon", "exploration_fraction"):
+        for name in ("start_epsilon", "end_epsilon", "exploration_fraction"):
             check_fraction(name, getattr(self, name))
-        if self.tau == 0:
-            raise ConfigError("tau must be > 0 (0 would never update the target network)")
         if self.exploration not in EXPLORATIONS:
             raise ConfigError(
                 f"exploration: unknown {self.exploration!r}; choose one of {list(EXPLORATIONS)}"
@@ -127,34 +108,11 @@ class DQNConfig(AgentConfig):
                 f"C51 needs v_min < v_max and at least 2 atoms, got v_min={self.v_min}, "
                 f"v_max={self.v_max}, num_atoms={self.num_atoms}"
             )
-        if self.buffer_size < self.num_envs * max(self.n_step, 2):
-            raise ConfigError(
-                f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
-                f"({self.num_envs} × {max(self.n_step, 2)})"
-            )
-        if self.num_updates < 1:
-            raise ConfigError(
-                f"total_timesteps ({self.total_timesteps}) leaves no gradient step after the "
-                f"warm-up ({self.warmup_steps * self.num_envs} transitions)"
-            )
+        self.check_schedule()
 
     @property
-    def warmup_steps(self) -> int:
-        """Vector steps of random actions before learning (at least n_step, to sample from)."""
-        return max(-(-self.learning_starts // self.num_envs), self.n_step)
-
-    @property
-    def updates_per_row(self) -> int:
-        return max(1, self.log_every // (self.num_envs * self.train_frequency))
-
-    @property
-    def num_rows(self) -> int:
-        remaining = self.total_timesteps - self.warmup_steps * self.num_envs
-        return max(remaining, 0) // (self.num_envs * self.train_frequency * self.updates_per_row)
-
-    @property
-    def num_updates(self) -> int:
-        return self.num_rows * self.updates_per_row
+    def steps_per_update(self) -> int:
+        return self.train_frequency
 
 
 # The paper's C51 settings (appendix table "Hyperparameters for algorithm and environment
@@ -204,13 +162,11 @@ def _networks(
     """The Q-network for these spaces (contextrl's or gymnasium's) and context input."""
     if not hasattr(action_space, "n"):
         raise ConfigError(f"DQN/C51 needs a Discrete action space, got {action_space!r}")
-    obs_shape = observation_space.shape
-    if len(obs_shape) != 1:
-        raise ConfigError(f"DQN needs a flat (1-D) observation, got shape {obs_shape}")
+    obs_size = flat_observation_size("DQN", observation_space)
     num_actions = int(action_space.n)
     outputs = num_actions * (config.num_atoms if config.distributional else 1)
     q = ConditionedMLP(
-        obs_shape[0],
+        obs_size,
         outputs,
         config.hidden_sizes,
         context,
@@ -237,6 +193,16 @@ def _q_values(nets: _Networks, params, obs, context_vector):
 def init_params(config: DQNConfig, env, train_contexts: Any, key) -> dict:
     """Freshly initialised Q-network parameters."""
     return _networks(config, *agent_inputs(config, env, train_contexts, "DQN")).q.init(key)
+
+
+def _explore(config: DQNConfig, nets: _Networks, q, key, epsilon):
+    """An exploring action from the Q-values: Boltzmann, or ε-greedy with probability ``epsilon``."""
+    explore_key, random_key, boltzmann_key = jax.random.split(key, 3)
+    if config.exploration == "boltzmann":
+        return jax.random.categorical(boltzmann_key, q / config.temperature)
+    random_action = jax.random.randint(random_key, q.shape[:-1], 0, nets.num_actions)
+    explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
+    return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
 
 
 def _learner(config: DQNConfig, nets: _Networks):
@@ -273,12 +239,7 @@ def _learner(config: DQNConfig, nets: _Networks):
 
     def act(params, obs, context_vector, key, epsilon):
         q, _ = _q_values(nets, params, obs, context_vector)
-        explore_key, random_key, boltzmann_key = jax.random.split(key, 3)
-        if config.exploration == "boltzmann":
-            return jax.random.categorical(boltzmann_key, q / config.temperature)
-        random_action = jax.random.randint(random_key, q.shape[:-1], 0, nets.num_actions)
-        explore = jax.random.uniform(explore_key, q.shape[:-1]) < epsilon
-        return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
+        return _explore(config, nets, q, key, epsilon)
 
     def learn(params, target_params, opt_state, replay, key, update_index):
         batch = replay.sample(key, config.batch_size, config.n_step, config.gamma)
@@ -305,90 +266,40 @@ def _learner(config: DQNConfig, nets: _Networks):
 def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
     """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
     nets = _networks(config, *agent_inputs(config, env, train_contexts, "DQN", host=False))
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
-    space = env.context_space
-    num_envs = config.num_envs
-    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
     optimizer, act, learn, epsilon_at = _learner(config, nets)
-    warmup_transitions = config.warmup_steps * num_envs
-    progress = Progress(
-        "C51" if config.distributional else "DQN",
-        warmup_transitions + config.num_updates * config.train_frequency * num_envs,
-        config.progress_every,
-    )
 
-    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
-        cenv = build_env(contexts)
-        key, init_key, reset_key = jax.random.split(key, 3)
+    def init(key, params):
         if params is None:  # given params: continue training them (population-based tuning)
-            params = nets.q.init(init_key)
-        opt_state = optimizer.init(params)
-        env_state, timestep = cenv.reset_copies(reset_key, num_envs)
-        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
-        obs = timestep.obs
-        action = jnp.zeros((num_envs,), jnp.int32)
-        replay = Replay.create(
-            capacity, transition_example(obs, context_of(env_state.context), action)
+            params = nets.q.init(key)
+        return params, params, optimizer.init(params)
+
+    def update(learner, world, step, update_index):
+        """``train_frequency`` vector steps of the exploring policy, then one gradient step."""
+        params, target_params, opt_state = learner
+        epsilon = epsilon_at(update_index)
+
+        def policy_step(world, _):
+            return step(world, lambda obs, ctx, key: act(params, obs, ctx, key, epsilon)), None
+
+        world = jax.lax.scan(policy_step, world, None, config.train_frequency)[0]
+        key, sample_key = jax.random.split(world.key)
+        *learner, loss = learn(
+            params, target_params, opt_state, world.replay, sample_key, update_index
         )
-        log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
+        return tuple(learner), world._replace(key=key), loss
 
-        def env_step(carry, action_fn):
-            env_state, obs, replay, log, step, key = carry
-            key, action_key = jax.random.split(key)
-            context_vector = context_of(env_state.context)
-            action = action_fn(obs, context_vector, action_key).astype(jnp.int32)
-            env_state, timestep = cenv.step_copies(env_state, action)
-            step = step + num_envs
-            replay = replay.add(transition(obs, context_vector, action, timestep))
-            log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
-            return env_state, timestep.obs, replay, log, step, key
-
-        def random_step(carry, _):
-            def random_action(obs, context_vector, key):
-                return jax.random.randint(key, (num_envs,), 0, nets.num_actions)
-
-            return env_step(carry, random_action), None
-
-        carry = (env_state, obs, replay, log, jnp.zeros((), jnp.int32), key)
-        env_state, obs, replay, log, step, key = jax.lax.scan(
-            random_step, carry, None, config.warmup_steps
-        )[0]
-        log, _ = log.close_period()  # warm-up episodes stay in the episode list, not the curve
-
-        def update(carry, update_index):
-            params, target_params, opt_state, env_state, obs, replay, log, step, key = carry
-            epsilon = epsilon_at(update_index)
-
-            def policy_step(carry, _):
-                def greedy(obs, context_vector, key):
-                    return act(params, obs, context_vector, key, epsilon)
-
-                return env_step(carry, greedy), None
-
-            (env_state, obs, replay, log, step, key), _ = jax.lax.scan(
-                policy_step, (env_state, obs, replay, log, step, key), None, config.train_frequency
-            )
-            key, sample_key = jax.random.split(key)
-            params, target_params, opt_state, loss = learn(
-                params, target_params, opt_state, replay, sample_key, update_index
-            )
-            carry = (params, target_params, opt_state, env_state, obs, replay, log, step, key)
-            return carry, loss
-
-        def row(carry, row_index):
-            first = row_index * config.updates_per_row
-            carry, losses = jax.lax.scan(update, carry, first + jnp.arange(config.updates_per_row))
-            *rest, log, step, key = carry
-            log, metrics = log.close_row(row_index, step, progress)
-            metrics["loss"] = losses.mean()
-            return (*rest, log, step, key), metrics
-
-        carry = (params, params, opt_state, env_state, obs, replay, log, step, key)
-        carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
-        return TrainResult(carry[0], {**metrics, "episodes": carry[6].episodes()})
-
-    return train
+    num_envs = config.num_envs
+    algorithm = offpolicy.Algorithm(
+        name="C51" if config.distributional else "DQN",
+        context=nets.context,
+        action_example=jnp.zeros((num_envs,), jnp.int32),
+        random_action=lambda key: jax.random.randint(key, (num_envs,), 0, nets.num_actions),
+        to_env=lambda action: action,
+        init=init,
+        update=update,
+        row_metrics=lambda losses: {"loss": losses.mean()},
+    )
+    return offpolicy.make_train(config, env, train_contexts, algorithm)
 
 
 def train_gymnasium(
@@ -399,11 +310,8 @@ def train_gymnasium(
     environments (RNA design, Box2D…) or any registered id, with the schedule of :func:`make_train`
     (warm-up, then ``train_frequency`` vector steps per gradient step). Returns the same
     ``TrainResult``."""
-    schedule = HostSchedule(
-        config.warmup_steps, config.num_rows, config.updates_per_row, config.train_frequency
-    )
     return train_on_host(
-        "DQN", config, env_id, train_contexts, key, _HostLearner, schedule, **options
+        "DQN", config, env_id, train_contexts, key, _HostLearner, config.schedule, **options
     )
 
 
@@ -419,9 +327,10 @@ class _HostLearner(HostLearner):
         self._target_params, self._opt_state = self.params, optimizer.init(self.params)
         action = np.zeros((self._num_envs,), np.int32)
         example = transition_example(collector.obs, collector.context, action)
-        capacity = max(config.buffer_size // self._num_envs, config.n_step + 1)
         # Own buffers: every step donates them.
-        self._replay = jax.tree_util.tree_map(jnp.copy, Replay.create(capacity, example))
+        self._replay = jax.tree_util.tree_map(
+            jnp.copy, Replay.create(config.replay_capacity, example)
+        )
         self._add = jax.jit(lambda replay, transition: replay.add(transition), donate_argnums=(0,))
         self._learn, self._explore = jax.jit(learn), jax.jit(act)
         self._rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel())
@@ -467,12 +376,7 @@ def make_policy(config: DQNConfig, env, train_contexts: Any, deterministic: bool
         q, _ = _q_values(nets, params, obs, context_vector)
         if deterministic:
             return jnp.argmax(q, axis=-1)
-        if config.exploration == "boltzmann":
-            return jax.random.categorical(key, q / config.temperature)
-        explore_key, random_key = jax.random.split(key)
-        random_action = jax.random.randint(random_key, q.shape[:-1], 0, nets.num_actions)
-        explore = jax.random.uniform(explore_key, q.shape[:-1]) < config.end_epsilon
-        return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
+        return _explore(config, nets, q, key, config.end_epsilon)
 
     return Policy(act, nets.context, env.context_space)
 

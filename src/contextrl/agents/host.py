@@ -25,7 +25,8 @@ import jax
 import numpy as np
 
 from contextrl.agents.common import EpisodeLog, Progress, TrainResult
-from contextrl.agents.networks import ConfigError, ContextInput, context_input
+from contextrl.agents.networks import ContextInput, context_input
+from contextrl.agents.validation import ConfigError
 from contextrl.context.distributions import DISTRIBUTIONS
 from contextrl.context.schedule import resolve_contexts
 from contextrl.gymnasium.registration import gym_id

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contextrl.agents.validation import ConfigError
 from contextrl.context.features import ContextBase, ContextSpace
 from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import resolve_contexts
@@ -35,10 +36,6 @@ VARIANTS = ("hidden", "concat_all", "concat_varying", "gated")  # how an agent s
 ACTIVATIONS = {"tanh": jnp.tanh, "relu": jax.nn.relu}
 
 Params = dict[str, Any]
-
-
-class ConfigError(ValueError):
-    """An invalid agent configuration, raised before anything is compiled."""
 
 
 def orthogonal(key, n_in: int, n_out: int, scale: float) -> jax.Array:
@@ -156,33 +153,6 @@ class ConditionedMLP:
             if i == 0 and self.context.variant == "gated":
                 x = x * 2.0 * jax.nn.sigmoid(dense(params["gate"], context_vector))
         return dense(params["out"], x)
-
-
-def check_positive(
-    name: str, value: Any, *, integer: bool = False, allow_zero: bool = False
-) -> None:
-    """Refuse a non-finite, wrongly typed, negative (or zero) configuration value with a clear error.
-    A traced value passes: it is a hyper-parameter checked as a number before it was traced."""
-    if isinstance(value, jax.core.Tracer):
-        return
-    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
-    if isinstance(value, bool) or not isinstance(value, kinds):
-        kind = "an integer" if integer else "a number"
-        raise ConfigError(f"{name} must be {kind}, got {value!r}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{name} must be finite, got {value!r}")
-    if value < 0 or (value == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"{name} must be {bound}, got {value!r}")
-
-
-def check_fraction(name: str, value: Any, *, include_one: bool = True) -> None:
-    """Refuse a value outside [0, 1] (or [0, 1))."""
-    check_positive(name, value, allow_zero=True)
-    if isinstance(value, jax.core.Tracer):
-        return
-    if value > 1 or (value == 1 and not include_one):
-        raise ConfigError(f"{name} must be in [0, 1{']' if include_one else ')'}, got {value!r}")
 
 
 def check_hidden_sizes(value: Sequence[int], activation: str) -> tuple[int, ...]:

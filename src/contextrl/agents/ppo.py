@@ -37,12 +37,12 @@ from contextrl.agents.common import (
     num_context_ids,
 )
 from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
-from contextrl.agents.networks import (
-    ConditionedMLP,
+from contextrl.agents.networks import ConditionedMLP, ContextInput
+from contextrl.agents.validation import (
     ConfigError,
-    ContextInput,
     check_fraction,
     check_positive,
+    flat_observation_size,
 )
 
 
@@ -123,12 +123,10 @@ def _networks(
         low, high = np.asarray(action_space.low), np.asarray(action_space.high)
     else:
         raise ConfigError(f"PPO needs a Discrete or a 1-D Box action space, got {action_space!r}")
-    obs_shape = observation_space.shape
-    if len(obs_shape) != 1:
-        raise ConfigError(f"PPO needs a flat (1-D) observation, got shape {obs_shape}")
+    obs_size = flat_observation_size("PPO", observation_space)
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
-    actor = ConditionedMLP(obs_shape[0], action_size, out_scale=0.01, **common)
-    critic = ConditionedMLP(obs_shape[0], 1, out_scale=1.0, **common)
+    actor = ConditionedMLP(obs_size, action_size, out_scale=0.01, **common)
+    critic = ConditionedMLP(obs_size, 1, out_scale=1.0, **common)
     return _Networks(actor, critic, context, discrete, low, high)
 
 

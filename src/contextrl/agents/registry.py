@@ -28,7 +28,8 @@ import jax
 
 from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.common import Policy
-from contextrl.agents.networks import ConfigError, ContextInput
+from contextrl.agents.networks import ContextInput
+from contextrl.agents.validation import ConfigError
 from contextrl.core.spaces import Box, Discrete
 
 

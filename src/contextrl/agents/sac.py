@@ -24,31 +24,18 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from contextrl.agents.common import (
-    AgentConfig,
-    EpisodeLog,
-    Policy,
-    Progress,
-    TrainResult,
-    agent_inputs,
-    contextual_env_factory,
-    num_context_ids,
-)
-from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
-from contextrl.agents.networks import (
-    ConditionedMLP,
-    ConfigError,
-    ContextInput,
-    check_fraction,
-    check_positive,
-)
+from contextrl.agents import offpolicy
+from contextrl.agents.common import Policy, TrainResult, agent_inputs
+from contextrl.agents.host import HostLearner, train_on_host
+from contextrl.agents.networks import ConditionedMLP, ContextInput
 from contextrl.agents.replay import Replay, transition, transition_example
+from contextrl.agents.validation import ConfigError, check_positive, flat_observation_size
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
 @dataclasses.dataclass(frozen=True)
-class SACConfig(AgentConfig):
+class SACConfig(offpolicy.OffPolicyConfig):
     """SAC hyper-parameters (defaults: CleanRL's continuous-control settings)."""
 
     total_timesteps: int = 50_000
@@ -81,40 +68,14 @@ class SACConfig(AgentConfig):
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""
         super().validate()
-        for name in ("buffer_size", "batch_size", "n_step", "policy_frequency", "log_every"):
-            check_positive(name, getattr(self, name), integer=True)
-        check_positive("learning_starts", self.learning_starts, integer=True, allow_zero=True)
+        check_positive("policy_frequency", self.policy_frequency, integer=True)
         for name in ("policy_lr", "q_lr", "alpha"):
             check_positive(name, getattr(self, name))
-        check_fraction("tau", self.tau)
-        if self.tau == 0:
-            raise ConfigError("tau must be > 0 (0 would never update the target critics)")
-        if self.buffer_size < self.num_envs * max(self.n_step, 2):
-            raise ConfigError(
-                f"buffer_size ({self.buffer_size}) must hold at least n_step vector steps "
-                f"({self.num_envs} × {max(self.n_step, 2)})"
-            )
-        if self.num_rows < 1:
-            raise ConfigError(
-                f"total_timesteps ({self.total_timesteps}) leaves no full logging period after the "
-                f"warm-up ({self.warmup_steps * self.num_envs} transitions; log_every "
-                f"{self.log_every})"
-            )
+        self.check_schedule()
 
     @property
-    def warmup_steps(self) -> int:
-        """Vector steps of random actions before learning (at least n_step, to sample from)."""
-        return max(-(-self.learning_starts // self.num_envs), self.n_step)
-
-    @property
-    def updates_per_row(self) -> int:
-        return max(1, self.log_every // (self.num_envs * self.policy_frequency))
-
-    @property
-    def num_rows(self) -> int:
-        remaining = self.total_timesteps - self.warmup_steps * self.num_envs
-        per_row = self.num_envs * self.policy_frequency * self.updates_per_row
-        return max(remaining, 0) // per_row
+    def steps_per_update(self) -> int:
+        return self.policy_frequency
 
 
 # The paper's SAC environments (appendix table); all three share one setting.
@@ -170,13 +131,11 @@ def _networks(
         raise ConfigError(
             f"SAC squashes actions into bounds; the action bounds are infinite: {action_space!r}"
         )
-    obs_shape = observation_space.shape
-    if len(obs_shape) != 1:
-        raise ConfigError(f"SAC needs a flat (1-D) observation, got shape {obs_shape}")
+    obs_size = flat_observation_size("SAC", observation_space)
     common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
     action_size = action_space.shape[0]
-    actor = ConditionedMLP(obs_shape[0], 2 * action_size, out_scale=0.01, **common)
-    critic = ConditionedMLP(obs_shape[0] + action_size, 1, out_scale=1.0, **common)
+    actor = ConditionedMLP(obs_size, 2 * action_size, out_scale=0.01, **common)
+    critic = ConditionedMLP(obs_size + action_size, 1, out_scale=1.0, **common)
     return _Networks(actor, critic, context, np.asarray(low), np.asarray(high))
 
 
@@ -290,99 +249,53 @@ def _learner(config: SACConfig, nets: _Networks):
 def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
     """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
     nets = _networks(config, *agent_inputs(config, env, train_contexts, "SAC", host=False))
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
-    space = env.context_space
-    num_envs = config.num_envs
-    capacity = max(config.buffer_size // num_envs, config.n_step + 1)
     init, critic_update, actor_update = _learner(config, nets)
-    progress = Progress(
-        "SAC",
-        (config.warmup_steps + config.num_rows * config.updates_per_row * config.policy_frequency)
-        * num_envs,
-        config.progress_every,
-    )
 
-    def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
-        cenv = build_env(contexts)
-        key, init_key, reset_key = jax.random.split(key, 3)
-        params, target_critic, opt_states = init(init_key, params)  # given: continue them
-        env_state, timestep = cenv.reset_copies(reset_key, num_envs)
-        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
-        obs = timestep.obs
-        action = jnp.zeros((num_envs, nets.action_size), jnp.float32)
-        replay = Replay.create(
-            capacity, transition_example(obs, context_of(env_state.context), action)
-        )
-        log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
-
-        def env_step(carry, action_fn):
-            env_state, obs, replay, log, step, key = carry
-            key, action_key = jax.random.split(key)
-            context_vector = context_of(env_state.context)
-            action = action_fn(obs, context_vector, action_key)
-            env_state, timestep = cenv.step_copies(env_state, nets.to_env(action))
-            step = step + num_envs
-            replay = replay.add(transition(obs, context_vector, action, timestep))
-            log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
-            return env_state, timestep.obs, replay, log, step, key
-
-        def random_step(carry, _):
-            def uniform(obs, context_vector, key):
-                return jax.random.uniform(key, (num_envs, nets.action_size), minval=-1, maxval=1)
-
-            return env_step(carry, uniform), None
-
-        carry = (env_state, obs, replay, log, jnp.zeros((), jnp.int32), key)
-        env_state, obs, replay, log, step, key = jax.lax.scan(
-            random_step, carry, None, config.warmup_steps
-        )[0]
-        log, _ = log.close_period()  # warm-up episodes stay in the episode list, not the curve
+    def update(learner, world, step, update_index):
+        """``policy_frequency`` rounds of (one vector step, one critic update), then one actor update."""
 
         def critic_round(carry, _):
-            params, target_critic, opt_states, env_state, obs, replay, log, step, key = carry
+            (params, target_critic, opt_states), world = carry
 
             def explore(obs, context_vector, key):
                 return _sample_action(nets, params["actor"], obs, context_vector, key)[0]
 
-            env_state, obs, replay, log, step, key = env_step(
-                (env_state, obs, replay, log, step, key), explore
-            )
-            key, sample_key, target_key = jax.random.split(key, 3)
-            batch = replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
-            params, target_critic, opt_states, loss = critic_update(
-                params, target_critic, opt_states, batch, target_key
-            )
-            carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
-            return carry, (loss, batch)
+            world = step(world, explore)
+            key, sample_key, target_key = jax.random.split(world.key, 3)
+            batch = world.replay.sample(sample_key, config.batch_size, config.n_step, config.gamma)
+            *learner, loss = critic_update(params, target_critic, opt_states, batch, target_key)
+            return (tuple(learner), world._replace(key=key)), (loss, batch)
 
-        def update(carry, _):
-            carry, (critic_losses, batches) = jax.lax.scan(
-                critic_round, carry, None, config.policy_frequency
-            )
-            params, target_critic, opt_states, *rest, key = carry
-            batch = jax.tree_util.tree_map(lambda x: x[-1], batches)
-            key, actor_key = jax.random.split(key)
-            params, opt_states, loss, alpha = actor_update(params, opt_states, batch, actor_key)
-            carry = (params, target_critic, opt_states, *rest, key)
-            return carry, (critic_losses.mean(), loss, alpha)
+        (learner, world), (critic_losses, batches) = jax.lax.scan(
+            critic_round, (learner, world), None, config.policy_frequency
+        )
+        params, target_critic, opt_states = learner
+        batch = jax.tree_util.tree_map(lambda x: x[-1], batches)
+        key, actor_key = jax.random.split(world.key)
+        params, opt_states, loss, alpha = actor_update(params, opt_states, batch, actor_key)
+        metrics = (critic_losses.mean(), loss, alpha)
+        return (params, target_critic, opt_states), world._replace(key=key), metrics
 
-        def row(carry, row_index):
-            carry, (critic_losses, actor_losses, alphas) = jax.lax.scan(
-                update, carry, None, config.updates_per_row
-            )
-            *rest, log, step, key = carry
-            log, metrics = log.close_row(row_index, step, progress)
-            metrics["critic_loss"] = critic_losses.mean()
-            metrics["actor_loss"] = actor_losses.mean()
-            metrics["alpha"] = alphas[-1]
-            return (*rest, log, step, key), metrics
+    def row_metrics(metrics):
+        critic_losses, actor_losses, alphas = metrics
+        return {
+            "critic_loss": critic_losses.mean(),
+            "actor_loss": actor_losses.mean(),
+            "alpha": alphas[-1],
+        }
 
-        carry = (params, target_critic, opt_states, env_state, obs, replay, log, step, key)
-        carry, metrics = jax.lax.scan(row, carry, jnp.arange(config.num_rows))
-        return TrainResult(carry[0], {**metrics, "episodes": carry[6].episodes()})
-
-    return train
+    shape = (config.num_envs, nets.action_size)
+    algorithm = offpolicy.Algorithm(
+        name="SAC",
+        context=nets.context,
+        action_example=jnp.zeros(shape, jnp.float32),
+        random_action=lambda key: jax.random.uniform(key, shape, minval=-1, maxval=1),
+        to_env=nets.to_env,
+        init=init,
+        update=update,
+        row_metrics=row_metrics,
+    )
+    return offpolicy.make_train(config, env, train_contexts, algorithm)
 
 
 def train_gymnasium(
@@ -393,11 +306,8 @@ def train_gymnasium(
     environments (dm_control…) or any registered id, with the same schedule as :func:`make_train`
     (warm-up, then ``policy_frequency`` rounds of one vector step and one critic update per actor
     update). Returns the same ``TrainResult``."""
-    schedule = HostSchedule(
-        config.warmup_steps, config.num_rows, config.updates_per_row, config.policy_frequency
-    )
     return train_on_host(
-        "SAC", config, env_id, train_contexts, key, _HostLearner, schedule, **options
+        "SAC", config, env_id, train_contexts, key, _HostLearner, config.schedule, **options
     )
 
 
@@ -418,7 +328,6 @@ class _HostLearner(HostLearner):
         self._policy_frequency, self._round = config.policy_frequency, 0
         action = np.zeros((num_envs, nets.action_size), np.float32)
         example = transition_example(collector.obs, collector.context, action)
-        capacity = max(config.buffer_size // num_envs, config.n_step + 1)
 
         @jax.jit
         def start(key, example, init_params):
@@ -430,7 +339,7 @@ class _HostLearner(HostLearner):
                 "opt_states": opt_states,
                 "key": key,
             }
-            return state, Replay.create(capacity, example)
+            return state, Replay.create(config.replay_capacity, example)
 
         @functools.partial(jax.jit, donate_argnums=0)
         def first_action(state, obs, context_vector):

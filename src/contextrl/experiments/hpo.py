@@ -40,8 +40,8 @@ from contextrl.experiments.spec import (
     MAX_INT32,
     CommonSpec,
     SpecError,
-    _check_int,
-    _check_number,
+    check_int,
+    check_number,
     parse_spec,
     register_protocol,
     spec_to_dict,
@@ -100,8 +100,8 @@ class HPOSpec(CommonSpec):
     def validate(self) -> None:
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):
-            _check_int(field, getattr(self, field), 1)
-        _check_int("steps_per_round", self.steps_per_round, 1, MAX_INT32)
+            check_int(field, getattr(self, field), 1)
+        check_int("steps_per_round", self.steps_per_round, 1, MAX_INT32)
         if "total_timesteps" in self.agent_options:
             raise SpecError(
                 "agent_options.total_timesteps: hpo trains each member for rounds × steps_per_round "
@@ -140,8 +140,8 @@ class HPOSpec(CommonSpec):
         for name, (low, high) in bounds.items():
             if name not in options:
                 raise SpecError(f"search: {name!r} is not a {self.agent} option; valid: {options}")
-            _check_number(f"search.{name}", low)
-            _check_number(f"search.{name}", high)
+            check_number(f"search.{name}", low)
+            check_number(f"search.{name}", high)
             if not low < high:
                 raise SpecError(f"search.{name}: empty range [{low}, {high}]")
             for value in (low, high):

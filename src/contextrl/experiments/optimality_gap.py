@@ -26,7 +26,7 @@ from contextrl.experiments.spec import (
     MAX_COUNT,
     CommonSpec,
     SpecError,
-    _check_int,
+    check_int,
     register_protocol,
 )
 
@@ -44,7 +44,7 @@ class OptimalityGapSpec(CommonSpec):
 
     def validate(self) -> None:
         super().validate()
-        _check_int("num_contexts", self.num_contexts, 1)
+        check_int("num_contexts", self.num_contexts, 1)
         agents = self.seeds * len(self.variants) * (self.num_contexts + 1)
         if agents > MAX_COUNT:
             raise SpecError(

@@ -30,7 +30,7 @@ from contextrl.experiments.protocols import (
     trial_key,
 )
 from contextrl.experiments.runs import RunDir, write_parquet
-from contextrl.experiments.spec import SpecError, _check_int, distribution_to_yaml
+from contextrl.experiments.spec import SpecError, check_int, distribution_to_yaml
 from contextrl.experiments.trials import host_context_input, host_returns
 
 EVAL_KEY = 1_000_003
@@ -63,8 +63,8 @@ def evaluate_run(
     spec = run.spec()
     if not spec.trains_agents:
         raise SpecError(f"{run.path}: the {spec.protocol} protocol has no agents to evaluate")
-    _check_int("--contexts", num_contexts, 1)
-    episodes = spec.eval_episodes if episodes is None else _check_int("--episodes", episodes, 1)
+    check_int("--contexts", num_contexts, 1)
+    episodes = spec.eval_episodes if episodes is None else check_int("--episodes", episodes, 1)
     name = name or _default_name(run)
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         raise SpecError(f"--name: use letters, digits, '.', '_' or '-', got {name!r}")

@@ -18,7 +18,7 @@ from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
     _as_tuple,
-    _check_number,
+    check_number,
     register_protocol,
 )
 
@@ -43,7 +43,7 @@ class SensitivitySpec(CommonSpec):
         if not self.magnitudes:
             raise SpecError("magnitudes: give at least one magnitude A")
         for magnitude in self.magnitudes:
-            _check_number("magnitudes", magnitude, 0.0)
+            check_number("magnitudes", magnitude, 0.0)
         self.scaled_values()  # refuses magnitudes that would be dropped
 
     def scaled_values(self) -> tuple[list[tuple[str, float, float]], list[str]]:

@@ -251,13 +251,13 @@ class CommonSpec:
     execute: ClassVar[Callable[..., Any] | None] = None
 
     def validate(self) -> None:
-        _check_int("seeds", self.seeds, 1)
-        _check_int("seed", self.seed, 0, 2**32 - 1)
-        _check_int("eval_episodes", self.eval_episodes, 1)
-        _check_int("batch_size", self.batch_size, 1)
-        _check_int("bootstrap_reps", self.bootstrap_reps, 1)
+        check_int("seeds", self.seeds, 1)
+        check_int("seed", self.seed, 0, 2**32 - 1)
+        check_int("eval_episodes", self.eval_episodes, 1)
+        check_int("batch_size", self.batch_size, 1)
+        check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
-            _check_int("max_steps", self.max_steps, 1, MAX_INT32)
+            check_int("max_steps", self.max_steps, 1, MAX_INT32)
         self._refuse_unused(self.unused_fields)
         if not self.trains_agents:
             return
@@ -438,7 +438,7 @@ MAX_COUNT = 1_000_000
 MAX_INT32 = 2**31 - 1  # step counters are int32 inside the compiled programs
 
 
-def _check_int(field: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> int:
+def check_int(field: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise SpecError(f"{field}: expected an integer >= {minimum}, got {value!r}")
     if value > maximum:
@@ -446,7 +446,7 @@ def _check_int(field: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -
     return value
 
 
-def _check_number(field: str, value: Any, minimum: float | None = None) -> float:
+def check_number(field: str, value: Any, minimum: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SpecError(f"{field}: expected a finite number, got {value!r}")
     if minimum is not None and value <= minimum:

@@ -30,8 +30,8 @@ from contextrl.experiments.runs import Summary, write_parquet
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
-    _check_int,
-    _check_number,
+    check_int,
+    check_number,
     register_protocol,
 )
 
@@ -292,13 +292,13 @@ class TabularSpec(CommonSpec):
     def validate(self) -> None:
         super().validate()
         for field in ("num_random", "states", "actions", "contexts"):
-            _check_int(field, getattr(self, field), 1 if field != "num_random" else 0)
+            check_int(field, getattr(self, field), 1 if field != "num_random" else 0)
         if self.actions**self.states > 100_000:
             raise SpecError(
                 f"states/actions: {self.actions}^{self.states} deterministic policies are too many "
                 "to enumerate exactly (limit 100000)"
             )
-        _check_number("discount", self.discount, 0.0)
+        check_number("discount", self.discount, 0.0)
         if not self.discount < 1.0:
             raise SpecError(f"discount: must be below 1, got {self.discount!r}")
 

@@ -28,8 +28,8 @@ from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, grid
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
-    _check_int,
-    _check_number,
+    check_int,
+    check_number,
     merge_features,
     parse_assignments,
     register_protocol,
@@ -69,15 +69,15 @@ class TrainTestSpec(CommonSpec):
                 raise SpecError(f"modes: unknown mode {mode!r}; choose from ['A', 'B', 'C']")
         if not self.modes:
             raise SpecError("modes: give at least one of ['A', 'B', 'C']")
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 4)
+        check_int("num_train_contexts", self.num_train_contexts, 1)
+        check_int("num_test_contexts", self.num_test_contexts, 4)
         side = int(np.sqrt(self.num_test_contexts))
         if side * side != self.num_test_contexts:
             raise SpecError(
                 f"num_test_contexts: the test contexts form a side × side grid, and "
                 f"{self.num_test_contexts} is not a square; use {side * side} or {(side + 1) ** 2}"
             )
-        _check_number("band", self.band, 0.0)
+        check_number("band", self.band, 0.0)
         if not self.band < 1.0:
             raise SpecError(f"band: must be below 1 (a fraction of the range), got {self.band!r}")
         train, test = self.boxes()
@@ -118,7 +118,7 @@ class TrainTestSpec(CommonSpec):
                     raise SpecError(f"{field}: {error}") from None
                 if not isinstance(ends, (list, tuple)) or len(ends) != 2:
                     raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
-                low, high = (_check_number(f"{field}.{name}", v) for v in ends)
+                low, high = (check_number(f"{field}.{name}", v) for v in ends)
                 if not low < high:
                     raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
                 try:

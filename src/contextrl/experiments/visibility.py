@@ -19,7 +19,7 @@ from contextrl.experiments.analyze import (
     score_matrices,
 )
 from contextrl.experiments.protocols import Plan, grid, train_and_test_sets
-from contextrl.experiments.spec import CommonSpec, _check_int, register_protocol
+from contextrl.experiments.spec import CommonSpec, check_int, register_protocol
 
 
 @register_protocol
@@ -38,8 +38,8 @@ class VisibilitySpec(CommonSpec):
 
     def validate(self) -> None:
         super().validate()
-        _check_int("num_train_contexts", self.num_train_contexts, 1)
-        _check_int("num_test_contexts", self.num_test_contexts, 1)
+        check_int("num_train_contexts", self.num_train_contexts, 1)
+        check_int("num_test_contexts", self.num_test_contexts, 1)
         self.resolve_features("train", self.train)
         if self.test is not None:
             self.resolve_features("test", self.test)
