@@ -581,7 +581,8 @@ def test_carl_envs_lists_its_environment_classes_as_module_attributes():
 def test_carls_lunarlander_demo_runs_its_way_on_the_face():
     """CARL's demo_heuristic_lunarlander.py, our equivalent: gymnasium's heuristic reads
     ``env.unwrapped.continuous``, episodes are reset with a seed each and still go round the contexts,
-    and ``render_mode`` set on the class opens a window (SDL's dummy driver here).
+    and ``render_mode = "human"`` set on the class gives frames, said in a warning (a host environment
+    opens no window); a classic-control class opens one (SDL's dummy driver here).
 
     Measured (seeds 0–7, gravity −10 and −5): the heuristic's returns 193–320; it lands above 100."""
     from gymnasium.envs.box2d.lunar_lander import heuristic
@@ -606,16 +607,20 @@ def test_carls_lunarlander_demo_runs_its_way_on_the_face():
         text=True,
         env={**os.environ, "SDL_VIDEODRIVER": "dummy"},
     )
-    assert window.returncode == 0 and window.stdout.split() == ["human", "None"], window.stderr
+    assert window.returncode == 0, window.stderr
+    assert window.stdout.splitlines() == ["rgb_array (400, 600, 3)", "human None"]
+    assert 'render_mode "rgb_array" instead of "human"' in window.stderr
 
 
 HUMAN_WINDOW = """
-from contextrl.carl.envs import CARLLunarLander
-CARLLunarLander.render_mode = "human"
-shown = CARLLunarLander()
-shown.reset(seed=0)
-print(shown.unwrapped.render_mode, shown.render())  # drawn into the window: render() gives None
-shown.close()
+from contextrl.carl.envs import CARLCartPole, CARLLunarLander
+for cls in (CARLLunarLander, CARLCartPole):
+    cls.render_mode = "human"
+    shown = cls()
+    shown.reset(seed=0)
+    frame = shown.render()  # a window's frame is drawn into it: None
+    print(shown.unwrapped.render_mode, None if frame is None else tuple(frame.shape))
+    shown.close()
 """
 
 

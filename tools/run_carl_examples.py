@@ -26,8 +26,8 @@ from pathlib import Path
 
 from run_carl_suite import rewrite
 
-# The demos' windows (render_mode "human") open on SDL's dummy driver. demo_carracing steers by the
-# keyboard, so it is left out; carl_with_sb3 ends by showing frames through OpenCV's window, which needs a
+# A window (render_mode "human") opens on SDL's dummy driver, or, for a host environment, becomes
+# frames. demo_carracing steers by the keyboard, so it is left out; carl_with_sb3 ends by showing frames through OpenCV's window, which needs a
 # screen, so it runs up to that loop (training and evaluation).
 NEEDS_KEYBOARD = {"demo_carracing.py"}
 ENDS_IN_A_WINDOW = {"carl_with_sb3.py": "# Enjoy trained agent"}

@@ -26,9 +26,6 @@ class HostEnv(ContextHelpers):
     """
 
     default_max_steps: ClassVar[int]
-    # Frames drawn through the simulator's own GL context (EGL for MuJoCo), which a pygame window in the
-    # same process can break: such an environment offers frames only, no "human" window.
-    gl_frames: ClassVar[bool] = False
     # Set by each host environment's ``__init__`` (they depend on its options, e.g. continuous or not):
     action_space: Any  # a gymnasium space
     base_observation_space: Any  # a gymnasium Box holding the original observation in every context

@@ -213,7 +213,9 @@ class ContextualGymEnv(gymnasium.Env):
         # The world rectangle JAX renderings show; None fits each context (grids share one).
         self.render_world_box: tuple[float, float, float, float] | None = None
         self.copy_index, self.num_copies = int(copy_index), int(num_copies)
-        modes = ["rgb_array"] if getattr(inner, "gl_frames", False) else list(RENDER_MODES)
+        # A host simulator renders through its own GL context (EGL for MuJoCo), which a pygame window
+        # in the same process can break: host envs offer frames only.
+        modes = ["rgb_array"] if isinstance(inner, HostEnv) else list(RENDER_MODES)
         if render_mode is not None and render_mode not in modes:
             raise ValueError(f"{inner.name} renders only in modes {modes}, got {render_mode!r}")
         self.metadata = {

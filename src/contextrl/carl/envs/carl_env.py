@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+import warnings
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -120,9 +121,20 @@ class CARLEnv(gymnasium.Wrapper):
     @classmethod
     def _class_render_mode(cls) -> str:
         """``CARLPendulum.render_mode = "human"`` (how CARL's demos and tests choose it), else
-        "rgb_array"; gymnasium's own ``render_mode`` is a property until a class sets a string."""
+        "rgb_array"; gymnasium's own ``render_mode`` is a property until a class sets a string. A host
+        environment draws frames only (a window beside a simulator's GL context can break it): "human"
+        there falls back to "rgb_array", said once."""
         mode = getattr(cls, "render_mode", None)
-        return mode if isinstance(mode, str) else "rgb_array"
+        if not isinstance(mode, str):
+            return "rgb_array"
+        if mode == "human" and spec(cls.env_id).host:
+            warnings.warn(
+                f"{cls.__name__}: {cls.env_id} runs on the host and draws frames only; "
+                'render_mode "rgb_array" instead of "human" (render() returns the frame)',
+                stacklevel=4,
+            )
+            return "rgb_array"
+        return mode
 
     def _fill(self, contexts: Contexts | None) -> Contexts:
         """The context set with every feature filled in, validated by contextrl's parser."""

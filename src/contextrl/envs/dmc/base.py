@@ -145,8 +145,6 @@ class DmcEnv(HostEnv):
     truncation), except when the simulation diverges, which ends it as terminated with reward 0.
     """
 
-    gl_frames = True  # MuJoCo renders through EGL
-
     domain: ClassVar[str]
     default_task: ClassVar[str]
     default_max_steps = 1000
