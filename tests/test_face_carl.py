@@ -548,6 +548,9 @@ def test_a_truncation_past_the_bounds_is_narrowed_to_them_and_said():
     point = NormalFloatContextFeature("gravity", mu=9.8, sigma=0.0, lower=1.0, upper=20.0)
     fixed = ContextSampler([point], CARLCartPole.get_context_space(), seed=0).sample_contexts(3)
     assert [c["gravity"] for c in fixed.values()] == [9.8] * 3
+    one_sided = NormalFloatContextFeature("gravity", mu=9.8, sigma=1.0, lower=-5.0)  # no upper
+    with pytest.warns(UserWarning, match=r"truncated to \[-5, 100\] .* drawing from \[0.1, 100\]"):
+        ContextSampler([one_sided], CARLCartPole.get_context_space(), seed=0)
     apart = NormalFloatContextFeature("gravity", mu=500.0, sigma=1.0, lower=200.0, upper=900.0)
     with pytest.raises(crl.ContextError, match="does not meet the feature's bounds"):
         ContextSampler([apart], CARLCartPole.get_context_space(), seed=0)

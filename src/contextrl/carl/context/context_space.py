@@ -156,11 +156,11 @@ class NormalFloatContextFeature(ContextFeature):
         low, high = max(lower, bounds[0]), min(upper, bounds[1])
         if low > high:
             raise ContextError(
-                f"{self.name}: the truncation [{self.lower:g}, {self.upper:g}] does not meet the "
+                f"{self.name}: the truncation [{lower:g}, {upper:g}] does not meet the "
                 f"feature's bounds [{bounds[0]:g}, {bounds[1]:g}]"
             )
         warnings.warn(
-            f"{self.name}: Normal truncated to [{self.lower:g}, {self.upper:g}] reaches past the "
+            f"{self.name}: Normal truncated to [{lower:g}, {upper:g}] reaches past the "
             f"feature's bounds [{bounds[0]:g}, {bounds[1]:g}]; drawing from [{low:g}, {high:g}]",
             stacklevel=4,
         )
