@@ -68,29 +68,37 @@ class Setup:
     max_steps: int
 
 
+@dataclasses.dataclass(frozen=True)
+class ContextView:
+    """How a gymnasium face shows the context: its constructors' ``obs_context_*`` keywords as one value,
+    checked once. ``features``: None (hidden), "all", "varying" or a list of names; ``as_dict``: the
+    observation as ``{"obs": ..., "context": ...}``; ``normalize`` and ``noise`` as
+    :meth:`ContextSchedule.observation` takes them."""
+
+    features: None | str | Sequence[str] = None
+    as_dict: bool = False
+    normalize: bool = False
+    noise: float = 0.0
+
+    def __post_init__(self):
+        if not isinstance(self.as_dict, bool):
+            raise ContextError(f"obs_context_as_dict must be True or False, got {self.as_dict!r}")
+
+
 def build_setup(
     env_id: str | Env | HostEnv,
     contexts: Any,
     context_selector: str | Callable | None,
-    obs_context_features: None | str | Sequence[str],
-    obs_context_as_dict: bool,
-    obs_context_normalize: bool,
-    obs_context_noise: float,
+    view: ContextView,
     max_steps: int | None,
     env_kwargs: dict,
 ) -> Setup:
     """The :class:`Setup` of a face's arguments (see :class:`ContextualGymEnv`)."""
     check_count("max_steps", max_steps, optional=True)
-    if not isinstance(obs_context_as_dict, bool):
-        raise ContextError(
-            f"obs_context_as_dict must be True or False, got {obs_context_as_dict!r}"
-        )
     inner = build_env(env_id, max_steps, env_kwargs)
     schedule = resolve_contexts(inner.context_space, contexts, context_selector)
-    obs_context = schedule.observation(
-        obs_context_features, obs_context_normalize, obs_context_noise
-    )
-    if obs_context_as_dict and obs_context.hidden:
+    obs_context = schedule.observation(view.features, view.normalize, view.noise)
+    if view.as_dict and obs_context.hidden:
         raise ContextError(
             "obs_context_as_dict=True needs visible context features; set "
             'obs_context_features to "all", "varying" or a list of names'
@@ -191,17 +199,10 @@ class ContextualGymEnv(gymnasium.Env):
                 raise ValueError(f"{name} must be an integer, got {value!r}")
         if not 0 <= copy_index < num_copies:
             raise ValueError(f"copy_index {copy_index} must lie in [0, num_copies={num_copies})")
-        made = build_setup(
-            env_id,
-            contexts,
-            context_selector,
-            obs_context_features,
-            obs_context_as_dict,
-            obs_context_normalize,
-            obs_context_noise,
-            max_steps,
-            env_kwargs,
+        view = ContextView(
+            obs_context_features, obs_context_as_dict, obs_context_normalize, obs_context_noise
         )
+        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs)
         inner, self.schedule, obs_context = made.env, made.schedule, made.obs_context
         self.max_steps = made.max_steps
         self.backend = make_backend(inner, self.schedule, obs_context, self.max_steps)

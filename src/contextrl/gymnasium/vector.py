@@ -37,6 +37,7 @@ from contextrl.gymnasium.backends import (
     shared_program,
 )
 from contextrl.gymnasium.env import (
+    ContextView,
     build_setup,
     check_count,
     observation_space,
@@ -146,17 +147,10 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         check_count("num_envs", num_envs)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        made = build_setup(
-            env_id,
-            contexts,
-            context_selector,
-            obs_context_features,
-            obs_context_as_dict,
-            obs_context_normalize,
-            obs_context_noise,
-            max_steps,
-            env_kwargs,
+        view = ContextView(
+            obs_context_features, obs_context_as_dict, obs_context_normalize, obs_context_noise
         )
+        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs)
         if not isinstance(made.env, Env):
             raise TypeError(f"{made.env.name} is a host environment; use make_vector_env for it")
         self.env, self.schedule = made.env, made.schedule
