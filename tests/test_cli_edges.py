@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from test_experiments_aggregation import result_rows  # the rows a run writes, constructed
+from constructed_results import result_rows  # the rows a run writes, constructed
 
 from contextrl.analysis import plots
 from contextrl.analysis.intervals import SAMPLED

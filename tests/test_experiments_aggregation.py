@@ -12,6 +12,7 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from constructed_results import result_rows  # tests/constructed_results.py
 from report_tables import point, read_sections, row  # tests/report_tables.py
 
 from contextrl.analysis import metrics, plots
@@ -60,37 +61,6 @@ def make_run(tmp_path, name: str, data: dict):
         base["seeds"] = 2
     spec = parse_spec({**base, **data})
     return spec, RunDir.create(spec, out=str(tmp_path / name))
-
-
-def result_rows(spec, returns: dict[str, np.ndarray], **extra) -> pd.DataFrame:
-    """The rows a run writes for each trial of ``returns`` (trial id → return per test context)."""
-    plan = expand(spec)
-    frames = []
-    for trial in plan.trials:
-        if trial.id not in returns:
-            continue
-        test = plan.sets[trial.test_set]
-        frames.append(
-            pd.DataFrame(
-                {
-                    "trial": trial.id,
-                    "kind": trial.kind,
-                    "variant": trial.variant,
-                    "seed": trial.seed,
-                    "train_set": trial.train_set,
-                    "test_set": trial.test_set,
-                    "context_index": np.arange(len(test)),
-                    **{
-                        f"ctx.{n}": np.asarray(getattr(test.contexts, n))
-                        for n in spec.space().names
-                    },
-                    **{k: list(v) for k, v in test.labels.items()},
-                    "return": np.asarray(returns[trial.id], dtype=float),
-                    **extra,
-                }
-            )
-        )
-    return pd.concat(frames, ignore_index=True)
 
 
 # ---------------------------------------------------------------- optimality gap, compare, eval
