@@ -1,7 +1,7 @@
 """Run CARL's own test suite against ``contextrl.carl``, with only the import changed.
 
 CARL's tests stay in CARL's checkout: they are read from FOLDER (a checkout of automl/CARL, tag v1.1.1),
-written to a temporary folder with ``carl.`` rewritten to ``contextrl.carl.``, and run there with this
+written to a temporary folder with ``carl`` rewritten to ``contextrl.carl``, and run there with this
 interpreter, so neither CARL's package nor its pytest settings are on the path. Nothing is fetched.
 
     git clone --depth 1 --branch v1.1.1 https://github.com/automl/CARL /tmp/carl
@@ -29,12 +29,13 @@ SUITE = (
     "test_context_space.py",
     "test_all_envs.py",
 )
-CARL_IMPORT = re.compile(r"(?<![\w.])carl\.")
+CARL_IMPORT = re.compile(r"(?<![\w.])carl(?=[.\s]|$)", re.MULTILINE)
 
 
 def rewrite(source: str) -> str:
-    """CARL's test with every ``carl.`` module path moved under ``contextrl.``."""
-    return CARL_IMPORT.sub("contextrl.carl.", source)
+    """Code written for CARL with every ``carl`` module path (``import carl``, ``carl.envs``, ``from
+    carl.x``) moved under ``contextrl.``."""
+    return CARL_IMPORT.sub("contextrl.carl", source)
 
 
 def main() -> int:

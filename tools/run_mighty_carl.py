@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-CARL = re.compile(r"(?<![\w.])carl(?=[.\s]|$)", re.MULTILINE)
+from run_carl_suite import rewrite
 
 # Mighty's make_carl_env on two configurations as its YAML configs spell them, then its wrapper stepped.
 FACTORY = """
@@ -72,8 +71,8 @@ def prepared(folder: Path, work: Path, original: bool) -> None:
     """Mighty's envs.py and wrappers.py (``carl`` rewritten unless ``original``) under empty package
     files, and its example."""
 
-    def rewrite(text: str) -> str:
-        return text if original else CARL.sub("contextrl.carl", text)
+    def changed(text: str) -> str:
+        return text if original else rewrite(text)
 
     package = work / "mighty" / "mighty_utils"
     package.mkdir(parents=True)
@@ -81,13 +80,13 @@ def prepared(folder: Path, work: Path, original: bool) -> None:
     (package / "__init__.py").write_text("")
     for name in ("envs.py", "wrappers.py"):
         text = (folder / "mighty" / "mighty_utils" / name).read_text(encoding="utf-8")
-        (package / name).write_text(rewrite(text), encoding="utf-8")
+        (package / name).write_text(changed(text), encoding="utf-8")
     configs = work / "mighty" / "configs" / "environment" / "carl_walkers"
     configs.mkdir(parents=True)
     shipped = folder / "mighty" / "configs" / "environment" / "carl_walkers" / "ant_goals.yaml"
     (configs / "ant_goals.yaml").write_text(shipped.read_text(encoding="utf-8"))
     example = (folder / "examples" / "sample_carl_context_sets.py").read_text(encoding="utf-8")
-    (work / "sample_carl_context_sets.py").write_text(rewrite(example))
+    (work / "sample_carl_context_sets.py").write_text(changed(example))
     (work / "factory.py").write_text(FACTORY)
 
 
