@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test run bench bench-all docs docs-gifs lint lock
+.PHONY: install system-deps test test-order run bench bench-all docs docs-gifs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -36,7 +36,12 @@ system-deps:
 # Both cores, one test file per worker: a file's module fixtures (compiled programs, the PB2 runs, the
 # CLI's trained run) are built once. (pytest-xdist 3.8's loadgroup does not group tests under pytest 9.)
 test: system-deps install
-	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=25
+	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=25 \
+		--junitxml=.pytest_cache/junit.xml
+
+# After a whole `make test`: the order of the test files for the next one, from its measured durations.
+test-order:
+	$(PY) tools/order_tests.py .pytest_cache/junit.xml
 
 run: install
 	$(VENV)/bin/contextrl run quickstart

@@ -2,7 +2,7 @@
 
     python benchmarks/learning_curves.py [--seeds 8]
 
-Trains PPO and C51 on CartPole and SAC on Pendulum with the settings of tests/learning.py (the runs
+Trains PPO and C51 on CartPole and SAC on Pendulum with the settings of tests/helpers/learning.py (the runs
 whose final returns the learning tests assert), each seed in one vmapped, compiled call, and draws the
 mean return of the episodes that ended in each logging period against environment steps: the median
 over seeds and the band from the lowest to the highest seed. Writes docs/images/learning_curves.png and

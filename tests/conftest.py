@@ -4,6 +4,7 @@ the two workers take the test files, and a fixture that stops a local Ray at the
 started it."""
 
 import ctypes.util
+import json
 import os
 import sys
 from pathlib import Path
@@ -23,7 +24,7 @@ xla_cpu_workaround()  # before any test starts JAX's CPU backend (see README, pr
 #   (benchmarks/bench_compile_flags.py);
 # - LLVM's optimisation level 0 instead of 3: test_brax.py's Hopper test takes 14 s instead of 19 s,
 #   the optimality-gap and paper tests that train at tiny budgets 24 s instead of 62 s.
-# The learning tests, which run long, pin XLA's default for their own programs (tests/learning.py,
+# The learning tests, which run long, pin XLA's default for their own programs (tests/helpers/learning.py,
 # MEASURED_NUMERICS); elsewhere results differ in the last bits only. Subprocesses that tests start
 # (the CLI, process executors, Ray workers) inherit the flags.
 for flag in ("--xla_cpu_use_fusion_emitters=false", "--xla_backend_optimization_level=0"):
@@ -51,36 +52,13 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "egl: renders with MuJoCo headless, which needs EGL")
 
 
-# The files that take longest (seconds on a fresh clone, both workers busy), handed out first: `make
-# test` keeps this order (--no-loadscope-reorder) so that the short files fill in at the end and both
-# workers finish together; xdist's own order (most tests first) hands out files of few long tests last.
-LONGEST_FILES = (
-    "test_reaching_learning.py",  # ~130: PPO on Fetch and UR5e
-    "test_experiments_hpo.py",  # ~130: two PB2 runs on Ray, then the host-training tests
-    "test_reaching.py",  # ~80
-    "test_reaching_checker.py",  # ~80
-    "test_workflow_cli.py",  # ~110
-    "test_experiments_matrix.py",  # ~100, with two PB2 runs: not started beside the hpo file's
-    "test_brax_large.py",  # ~85
-    "test_agents_sac.py",  # ~75
-    "test_paper.py",  # ~75
-    "test_brax_agents.py",  # ~60
-    "test_agents_dqn.py",  # ~60
-    "test_platformer.py",  # ~60
-    "test_brax.py",  # ~60
-    "test_one_path.py",  # ~55
-    "test_experiments_agents.py",  # ~45
-    "test_interval_coverage.py",  # ~40: 6,000 synthetic experiments
-    "test_agents_ppo.py",  # ~38
-    "test_platformer_learning.py",  # ~36
-    "test_experiments_runs.py",  # ~30
-    "test_envs.py",  # ~30
-    "test_experiments_registry.py",  # ~27
-    "test_sb3.py",  # ~25
-    "test_docs.py",  # ~22
-    "test_face_gymnax.py",  # ~21
-    "test_vehicle_racing.py",  # ~18
-    "test_gymnasium.py",  # ~17
+# The order in which the two workers take the test files: longest first, as measured in a whole `make
+# test` and written by `python tools/order_tests.py .pytest_cache/junit.xml` (which also keeps the two
+# PB2 files from running at the same time). `make test` keeps this order (--no-loadscope-reorder) so
+# that the short files fill in at the end and both workers finish together; xdist's own order (most
+# tests first) hands out files of few long tests last. A file not yet measured goes after the others.
+FILE_ORDER = list(
+    json.loads((ROOT / "tests" / "file_durations.json").read_text(encoding="utf-8"))["files"]
 )
 
 
@@ -89,8 +67,11 @@ def pytest_collection_modifyitems(items):
         if EGL_MISSING and item.get_closest_marker("egl"):
             reason = "needs EGL for MuJoCo's headless rendering (libegl1 libgl1-mesa-dri: make system-deps)"
             item.add_marker(pytest.mark.skip(reason=reason))
-    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep theirs
+    rank = {name: i for i, name in enumerate(FILE_ORDER)}
+    tests = ROOT / "tests"
+    items.sort(
+        key=lambda item: rank.get(item.path.relative_to(tests).as_posix(), len(rank))
+    )  # stable
 
 
 @pytest.fixture(scope="module")

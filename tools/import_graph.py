@@ -7,7 +7,7 @@ the dependency order between modules can be checked without importing anything.
 An import inside a function runs when the function is called, not when the module loads; it is an edge
 of the graph all the same (the two modules still depend on each other), so cycles are listed twice: over
 every import, and over module-level imports only (those are what break `import` itself).
-tests/test_layers.py uses `read_imports` and `cycles`.
+tests/repository/test_layers.py uses `read_imports` and `cycles`.
 """
 
 from __future__ import annotations

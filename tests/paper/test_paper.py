@@ -1,0 +1,187 @@
+"""The paper's figures (``contextrl paper``): every spec parses at every scale and runs end to end at
+the tiny budget; the claim checks decide from intervals; the results page is generated from runs."""
+
+from __future__ import annotations
+
+import html
+import os
+from pathlib import Path
+
+import pytest
+
+from contextrl.analysis.intervals import Interval
+from contextrl.cli import main
+from contextrl.experiments.paper import (
+    BRITTLE,
+    EQUIVALENCE,
+    FIGURES,
+    GATE,
+    HARMLESS,
+    MIN_SEEDS,
+    PAPER_RUNS,
+    SCALES,
+    SPEC_FOLDER,
+    _all,
+    _decide,
+    _plan,
+    _zone,
+    results_page,
+    run_figure,
+    spec_data,
+)
+from contextrl.experiments.runner import run_experiment
+from contextrl.experiments.runs import RunDir
+from contextrl.experiments.spec import parse_spec
+from tests.helpers import ROOT
+from tests.helpers.report_tables import check_report
+
+
+def test_every_spec_file_belongs_to_one_figure_and_states_its_paper_section_and_claim():
+    files = [path for figure in FIGURES.values() for path in figure.files().values()]
+    assert sorted(files) == sorted(SPEC_FOLDER.glob("*.yaml"))
+    for figure in FIGURES.values():
+        assert figure.header("Paper") and figure.header("Claim"), figure.name
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_every_figure_parses_and_plans_at_every_scale(scale):
+    for figure in FIGURES.values():
+        for part in figure.files():
+            spec = parse_spec(spec_data(figure, part, scale))
+            assert spec.name.endswith(f"-{scale}")
+            _plan(spec)  # contexts drawn, trials planned (kept: the results page reads them again)
+
+
+def test_the_small_scale_keeps_the_papers_schedule_and_cuts_the_budget():
+    figure = FIGURES["optgap_cartpole"]
+    paper, small = (spec_data(figure, "optgap_cartpole", s) for s in ("paper", "small"))
+    assert paper["agent_options"] == {"total_timesteps": 100000, "context_selector": "round_robin"}
+    assert small["agent_options"] == {"total_timesteps": 30000, "context_selector": "round_robin"}
+    assert (paper["num_contexts"], small["num_contexts"]) == (64, 8)
+
+
+def test_a_claim_holds_only_when_its_interval_clears_the_bound():
+    assert _decide(Interval(5.0, 1.0, 9.0)) is True
+    assert _decide(Interval(-5.0, -9.0, -1.0)) is False
+    assert _decide(Interval(1.0, -1.0, 3.0)) is None
+    assert _decide(Interval(31.0, 29.0, 33.0), 30.0) is None
+    assert _all([True, True]) is True
+    assert _all([True, None]) is None
+    assert _all([None, False]) is False
+
+
+@pytest.fixture(scope="module")
+def paper_runs(tmp_path_factory):
+    return tmp_path_factory.mktemp("paper")
+
+
+# Figures run with the paper's agents on JAX environments, mostly compiling (the agents' host paths
+# run in experiments/test_matrix.py: C51 on LunarLander in three protocols, DQN in visibility).
+# Every other figure runs end to end with the random agent below, except the PB2 figures, which need
+# an agent with hyper-parameters and a local Ray (minutes each on two cores): their specs parse and
+# plan above, and PB2 itself runs in experiments/test_hpo.py.
+WITH_THEIR_AGENTS = [
+    "tabular_cmdp",
+    "optgap_cartpole",
+    "ecdf_pendulum",
+    "baseline_mountaincar_default",
+]
+PB2_PARSED_ONLY = ["pb2_acrobot", "pb2_lunarlander", "pb2_pendulum"]
+
+
+@pytest.mark.parametrize("name", WITH_THEIR_AGENTS)
+def test_figures_run_end_to_end_with_their_agents_at_the_tiny_budget(name, paper_runs):
+    verdict, report = run_figure(name, "tiny", root=paper_runs, progress=False)
+    assert verdict.holds in (True, False, None) and verdict.evidence
+    text = report.read_text()
+    assert html.escape(FIGURES[name].header("Claim").split(":")[0][:40]) in text
+    assert f"the claim {verdict.word}" in text
+
+
+@pytest.mark.parametrize(
+    "name", [n for n in FIGURES if n not in WITH_THEIR_AGENTS + PB2_PARSED_ONLY]
+)
+def test_every_other_figure_runs_end_to_end_with_a_random_agent(name, tmp_path):
+    """The figure's environment, contexts, visibility variants and protocol at the tiny budget, its
+    claim checked; the agent acts at random (training each figure's agent here is a minute of
+    compiling per figure; the agents train in their own tests and in the figures above)."""
+    figure = FIGURES[name]
+    runs = {}
+    for part in figure.files():
+        data = {**spec_data(figure, part, "tiny"), "agent": "random"}
+        data.pop("agent_options", None)
+        runs[part], _ = run_experiment(data, out=tmp_path / part, progress=False, report=False)
+    verdict = figure.check(runs)
+    assert verdict.holds in (True, False, None) and verdict.evidence
+
+
+def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
+    """Tiny runs have 2 seeds: no verdict, whatever the intervals say, and the page says why.
+    Episodes of at most 20 steps earn CartPole returns of at most 20, so every interval of the gap
+    lies below 30: the rule alone would say "does not hold". MountainCar's 20-step episodes never
+    reach the flag: trained and random agents both earn -20, shown beside the evidence. The paper's
+    3-state cMDP is solved exactly (no seeds, no gate): its gap of 3 decides."""
+    untrained, _ = run_figure(
+        "baseline_mountaincar_default", "tiny", root=paper_runs, progress=False
+    )
+    assert untrained.word == "no verdict"
+    assert untrained.withheld == (
+        "2 seeds, fewer than 5; the agent did not learn at this budget: hidden"
+    )
+    assert "trained vs random return at the training contexts: hidden -20 vs -20" in (
+        untrained.evidence
+    )
+    gap, _ = run_figure("optgap_cartpole", "tiny", root=paper_runs, progress=False)
+    assert gap.word == "no verdict" and gap.holds is False
+    assert "(95% CI; each needs to lie above 30)" in gap.evidence
+    exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
+    assert exact.holds is True and exact.word == "holds" and "3-state cMDP: 3;" in exact.evidence
+    for name in ("tabular_cmdp", "optgap_cartpole", "baseline_mountaincar_default"):
+        assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
+    manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
+    assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
+
+
+def test_every_spec_states_the_decision_rule_its_check_applies():
+    """The rule in each spec file (written before its runs) is the one the page prints and the
+    check applies: both come from the same text, so they cannot drift apart."""
+    for figure in FIGURES.values():
+        for part in figure.files():
+            assert figure.header("Decision", part) == figure.rule, (figure.name, part)
+        if figure.check.gated:
+            assert figure.rule.endswith(GATE)
+        assert figure.header("Budget"), figure.name
+    assert [f.name for f in FIGURES.values() if f.stated_budget] == ["kirk_cartpole"]
+
+
+def test_sensitivity_zones_and_equivalence_margins_are_fixed_fractions_of_the_gain():
+    gain = 200.0  # harmless below 20, brittle above 100
+    assert _zone(Interval(5.0, 0.0, 19.0), gain) == "harmless"
+    assert _zone(Interval(50.0, 21.0, 99.0), gain) == "moderate"
+    assert _zone(Interval(150.0, 101.0, 300.0), gain) == "brittle"
+    assert _zone(Interval(20.0, 10.0, 30.0), gain) is None  # straddles a boundary: undecided
+    assert (HARMLESS, BRITTLE, EQUIVALENCE, MIN_SEEDS) == (0.10, 0.50, 0.10, 5)
+
+
+def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
+    """docs/paper.md is generated, never edited: `contextrl paper page` writes it word for word from
+    the run records kept in results/paper, so a changed check, budget or claim, a run added or a
+    hand edit without regenerating the page fails here."""
+    monkeypatch.chdir(ROOT)
+    page = Path("docs/paper.md").read_text(encoding="utf-8")
+    assert page == results_page(PAPER_RUNS) + "\n", "regenerate it: contextrl paper page"
+    for name in FIGURES:
+        assert f"## {name}\n" in page
+    tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
+    assert "**Solved exactly** (exact solution; " in tabular and "the claim **holds**" in tabular
+    for name in ("visibility_pendulum", "ecdf_pendulum", "kirk_pendulum_gravity_length"):
+        section = page.split(f"## {name}\n")[1].split("\n## ")[0]
+        assert "- **At full budget** (" in section and "over seeds" in section
+
+
+def test_the_command_lists_figures_and_refuses_an_unknown_one(capsys, tmp_path):
+    assert main(["paper", "list", "--runs", str(tmp_path)]) == 0
+    listed = capsys.readouterr().out
+    assert all(f"{name}  (" in listed for name in FIGURES)
+    assert main(["paper", "run", "figure_9", "--runs", str(tmp_path)]) == 2
+    assert "unknown figure 'figure_9'; choose one of ['tabular_cmdp'" in capsys.readouterr().err
