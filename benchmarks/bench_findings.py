@@ -19,9 +19,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from contextrl.analysis.scores import gap_statistics
 from contextrl.experiments import RunDir, expand, resume, run_experiment
-from contextrl.experiments.analyze import run_cells
-from contextrl.experiments.optimality_gap import gap_statistics
+from contextrl.experiments.reports import run_cells
 from contextrl.experiments.spec import load_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +32,9 @@ def optimality_gap(run: RunDir) -> list[tuple[str, str]]:
     and each seed's mean return over its contexts."""
     spec = run.spec()
     rows = []
-    for variant, stats in gap_statistics(spec, run_cells(run, expand(spec), run.results())).items():
+    for variant, stats in gap_statistics(
+        run_cells(run, expand(spec), run.results()), spec.variants, **spec.design
+    ).items():
         excludes = "yes" if stats.gap.low > 0 or stats.gap.high < 0 else "no"
         seeds = stats.per_seed()
         rows += [

@@ -415,7 +415,8 @@ def build_parser(experiments: bool = True) -> argparse.ArgumentParser:
     add_cache(subparsers)
     if not experiments:
         return parser
-    from contextrl.experiments.commands import add_eval, add_paper, add_report, add_run
+    from contextrl.experiments.commands import add_eval, add_report, add_run
+    from contextrl.paper.command import add_paper
 
     add_run(subparsers)
     add_report(subparsers)

@@ -9,12 +9,8 @@ import pytest
 
 from contextrl.analysis import plots
 from contextrl.analysis.intervals import Interval
-from contextrl.experiments.analyze import (
-    natural_key,
-    per_context_table,
-    return_lines,
-    score_cells,
-)
+from contextrl.analysis.scores import natural_key, return_lines, score_cells
+from contextrl.experiments.reports import per_context_table
 
 
 def results_frame() -> pd.DataFrame:

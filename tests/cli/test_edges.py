@@ -18,10 +18,10 @@ import pytest
 
 from contextrl.analysis import plots
 from contextrl.analysis.intervals import SAMPLED
+from contextrl.analysis.scores import Scores, score_intervals
 from contextrl.cli import main
 from contextrl.context.distributions import Constant, Uniform
 from contextrl.experiments import RunDir, expand, parse_spec
-from contextrl.experiments.analyze import Scores, score_intervals
 from contextrl.experiments.runs import write_parquet
 from contextrl.experiments.spec import ENV_DEFAULTS, parse_assignments, parse_distribution
 from tests.helpers import ROOT
@@ -245,7 +245,7 @@ def test_version_and_python_dash_m(tmp_path):
 
 def test_one_seed_has_no_interval(tmp_path, capsys):
     """Before: one seed gave a zero-width "95% CI" (a bootstrap over one seed)."""
-    from contextrl.experiments.analyze import interval_title
+    from contextrl.analysis.scores import interval_title
 
     one = {"a": Scores(np.ma.masked_invalid([[1.0, 2.0, 3.0]]), (), ())}
     _, rows = score_intervals(one, contexts=SAMPLED, reps=20, seed=0)

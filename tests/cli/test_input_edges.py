@@ -14,7 +14,8 @@ import contextrl.gymnasium  # noqa: F401  (registers the gymnasium ids)
 from contextrl.carl.envs import CARLCartPole
 from contextrl.cli import main
 from contextrl.context import ContextError, Uniform
-from contextrl.experiments import paper
+from contextrl.paper import runs as paper_runs
+from tests.helpers import ROOT
 
 DRY = ["--dry-run"]
 
@@ -106,10 +107,12 @@ def test_docs_write_only_where_told(capsys, tmp_path, monkeypatch):
 
 def test_paper_reads_the_kept_runs_or_says_where_it_looked(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(paper, "REPOSITORY_RUNS", tmp_path / "none")
+    monkeypatch.setattr(paper_runs, "REPOSITORY_RUNS", tmp_path / "none")
     refused(capsys, ["no runs in ./results/paper or", "give --runs FOLDER"], "paper", "list")
-    monkeypatch.setattr(paper, "REPOSITORY_RUNS", paper.SPEC_FOLDER.parents[2] / "results/paper")
-    assert paper.kept_runs() == paper.REPOSITORY_RUNS  # a checkout's runs, from any folder
+    monkeypatch.setattr(paper_runs, "REPOSITORY_RUNS", ROOT / "results/paper")
+    assert (
+        paper_runs.kept_runs() == paper_runs.REPOSITORY_RUNS
+    )  # a checkout's runs, from any folder
 
 
 def test_gymnasium_make_with_context_points_at_contexts():

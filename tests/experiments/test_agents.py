@@ -4,10 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from contextrl.analysis.scores import gap_statistics
 from contextrl.experiments import executors, expand, run_experiment
-from contextrl.experiments.analyze import run_cells
 from contextrl.experiments.commands import main as commands_main
-from contextrl.experiments.optimality_gap import gap_statistics
+from contextrl.experiments.reports import run_cells
 
 PPO_OPTIONS = {"total_timesteps": 2048, "num_envs": 4, "num_steps": 64, "hidden_sizes": [16, 16]}
 
@@ -36,7 +36,9 @@ def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
     assert set(curves["trial"]) == set(results["trial"]) and curves["step"].max() == 2048
     html = (run.path / "report.html").read_text()
     assert "Optimality gap (concat_varying)" in html and "Probability that a specialist" in html
-    stats = gap_statistics(run.spec(), run_cells(run, expand(run.spec()), results))
+    parsed = run.spec()
+    cells = run_cells(run, expand(parsed), results)
+    stats = gap_statistics(cells, parsed.variants, **parsed.design)
     assert f"= {stats['concat_varying'].gap}." in html
     general = stats["concat_varying"].per_seed()["general"]
     assert len(general) == 2 and "general " + ", ".join(f"{v:.1f}" for v in general) in html

@@ -14,8 +14,8 @@ import pandas as pd
 import pytest
 
 from contextrl.analysis import metrics, plots
+from contextrl.analysis.scores import score_cells, score_matrices
 from contextrl.experiments import RunDir, expand, parse_spec, report
-from contextrl.experiments.analyze import score_cells, score_matrices
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.runs import write_parquet
 from tests.helpers.constructed_results import result_rows

@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from contextrl.analysis import metrics, plots
+from contextrl.analysis.scores import score_cells, score_matrices
 from contextrl.experiments import RunDir, expand, parse_spec, report
-from contextrl.experiments.analyze import learning_section, score_cells, score_matrices
+from contextrl.experiments.reports import learning_section
 from contextrl.experiments.runs import write_parquet
 
 # 2 seeds × 2 contexts. Hand computation (see each test):

@@ -11,27 +11,22 @@ import pytest
 
 from contextrl.analysis.intervals import Interval
 from contextrl.cli import main
-from contextrl.experiments.paper import (
-    BRITTLE,
-    EQUIVALENCE,
-    FIGURES,
-    GATE,
-    HARMLESS,
-    MIN_SEEDS,
-    PAPER_RUNS,
-    SCALES,
-    SPEC_FOLDER,
-    _all,
-    _decide,
-    _plan,
-    _zone,
-    results_page,
-    run_figure,
-    spec_data,
-)
 from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec
+from contextrl.paper import FIGURES, PAPER_RUNS, SCALES, results_page, run_figure, spec_data
+from contextrl.paper.catalogue import SPEC_FOLDER
+from contextrl.paper.checks import (
+    BRITTLE,
+    EQUIVALENCE,
+    GATE,
+    HARMLESS,
+    MIN_SEEDS,
+    _all,
+    _decide,
+    _zone,
+)
+from contextrl.paper.plans import planned
 from tests.helpers import ROOT
 from tests.helpers.report_tables import check_report
 
@@ -49,7 +44,9 @@ def test_every_figure_parses_and_plans_at_every_scale(scale):
         for part in figure.files():
             spec = parse_spec(spec_data(figure, part, scale))
             assert spec.name.endswith(f"-{scale}")
-            _plan(spec)  # contexts drawn, trials planned (kept: the results page reads them again)
+            planned(
+                spec
+            )  # contexts drawn, trials planned (kept: the results page reads them again)
 
 
 def test_the_small_scale_keeps_the_papers_schedule_and_cuts_the_budget():

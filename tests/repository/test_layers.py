@@ -35,21 +35,22 @@ LAYERS = [
     ("agents", ["contextrl.agents"]),
     ("analysis", ["contextrl.analysis"]),
     ("experiments", ["contextrl.experiments"]),
+    ("paper", ["contextrl.paper"]),
     ("cli", ["contextrl.cli", "contextrl.__main__", "contextrl.demo"]),
 ]
 
 # Inside experiments, the order the modules build on each other (lowest first): specs, their expansion
-# into trials, running a chunk, run directories (starting Ray, and where Ray's output goes in a run),
-# reports, the protocols, executors, the runner, the commands around it, and the package that
+# into a plan of trials, running a chunk, run directories (starting Ray, and where Ray's output goes in
+# a run), reports, the protocols, executors, the runner, the commands around it, and the package that
 # registers the protocols.
 EXPERIMENTS = [
     "spec",
-    "protocols",
+    "plan",
     "trials",
     "runs",
     "ray_cluster",
     "ray_output",
-    "analyze",
+    "reports",
     "sensitivity",
     "optimality_gap",
     "visibility",
@@ -62,7 +63,6 @@ EXPERIMENTS = [
     "reevaluate",
     "compare",
     "tensorboard",
-    "paper",
     "commands",
 ]
 
@@ -120,7 +120,7 @@ def test_no_module_level_import_runs_up_a_layer(edges):
 
 
 def test_experiments_import_in_their_order(edges):
-    """spec → protocols → trials → runs → … → executors → runner → commands: a module imports only
+    """spec → plan → trials → runs → … → executors → runner → commands: a module imports only
     those before it, so each file's header shows what it builds on."""
     backward = [
         f"{edge.importer} (line {edge.line}) imports {edge.imported}"

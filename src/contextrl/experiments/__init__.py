@@ -16,7 +16,7 @@ from contextrl.experiments import (  # noqa: F401  (registers the protocols)
     train_test,
     visibility,
 )
-from contextrl.experiments.protocols import Plan, Trial, expand
+from contextrl.experiments.plan import Plan, Trial, expand
 from contextrl.experiments.runner import prepare, report, resume, run_experiment
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import (

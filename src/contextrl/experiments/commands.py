@@ -17,20 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from contextrl.agents import get_agent, registered_agents
-from contextrl.experiments.analyze import learning_verdict
 from contextrl.experiments.compare import compare_runs
-from contextrl.experiments.executors import EXECUTORS, connect
-from contextrl.experiments.paper import (
-    FIGURES,
-    PAPER_RUNS,
-    SCALES,
-    figure_rows,
-    kept_runs,
-    results_page,
-    run_figure,
-)
+from contextrl.experiments.executors import connect
 from contextrl.experiments.planning import describe_plan
 from contextrl.experiments.reevaluate import evaluate_run
+from contextrl.experiments.reports import learning_verdict
 from contextrl.experiments.runner import prepare, report, resume
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import (
@@ -530,85 +521,6 @@ def add_eval(subparsers) -> None:
     parser.add_argument("--episodes", type=count, help="episodes per context (the run's)")
     parser.add_argument("--name", help="name of this evaluation (eval-1, eval-2, …)")
     parser.set_defaults(handler=eval_command)
-
-
-def paper_command(args: argparse.Namespace) -> int:
-    if args.action == "run" and args.figure is None:
-        raise SpecError(
-            f"paper run: name a figure (contextrl paper run FIGURE); choose one of {list(FIGURES)}"
-        )
-    if args.action != "run" and args.figure is not None:
-        raise SpecError(f"paper {args.action}: takes no figure (got {args.figure!r}); run does")
-    if args.runs is None:  # run writes under ./results/paper; list and page read the kept runs
-        args.runs = PAPER_RUNS if args.action == "run" else kept_runs()
-    if args.action == "list":
-        for row in figure_rows(args.runs):
-            print(f"{row.pop('figure')}  ({row.pop('paper')})\n  claim: {row.pop('claim')}")
-            print("  " + "; ".join(f"{k}: {v}" for k, v in row.items()))
-        return 0
-    if args.action == "page":
-        text = results_page(args.runs)
-        if args.out == "-":
-            print(text)
-        else:
-            Path(args.out).write_text(text + "\n", encoding="utf-8")
-            print(f"wrote {args.out}")
-        return 0
-    if args.figure not in FIGURES:
-        raise SpecError(
-            f"paper run: unknown figure {args.figure!r}; choose one of {list(FIGURES)} "
-            "(contextrl paper list says what each is)"
-        )
-    verdict, path = run_figure(
-        args.figure,
-        args.scale,
-        root=args.runs,
-        executor=args.executor,
-        address=args.address,
-        batch_size=args.batch_size,
-        progress=not args.quiet,
-    )
-    withheld = f" ({verdict.withheld})" if verdict.withheld else ""
-    print(
-        f"{args.figure} ({args.scale} budget): the claim {verdict.word}{withheld}. "
-        f"{verdict.evidence}."
-    )
-    print(f"report: {path}")
-    return 0
-
-
-def add_paper(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "paper",
-        help="the paper's figures: list them, run one (its claim checked), write the results page",
-    )
-    parser.add_argument(
-        "action", nargs="?", choices=["list", "run", "page"], default="list",
-        help="list (default): each figure, its claim and time; run FIGURE; page: docs/paper.md",
-    )  # fmt: skip
-    parser.add_argument("figure", nargs="?", help="with run: the figure (see contextrl paper list)")
-    parser.add_argument(
-        "--scale",
-        choices=SCALES,
-        default="small",
-        help="the paper's budget, the small one two CPU cores afford (default), or tiny (a smoke "
-        "run that decides nothing)",
-    )
-    parser.add_argument(
-        "--runs",
-        help=f"folder of the figures' runs: run writes (default ./{PAPER_RUNS}), list and page "
-        f"read (default ./{PAPER_RUNS}, else the repository's)",
-    )
-    parser.add_argument("--out", default="docs/paper.md", help="with page: the file (- prints)")
-    parser.add_argument("--executor", choices=list(EXECUTORS), default="local")
-    parser.add_argument("--address", help="with --executor ray: the cluster (default: a local Ray)")
-    parser.add_argument(
-        "--batch-size",
-        type=count,
-        help="with run: trials trained in one vmapped call (the spec's; a GPU takes them all)",
-    )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
-    parser.set_defaults(handler=paper_command)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -17,23 +17,25 @@ import contextrl as crl
 from contextrl.analysis import plots
 from contextrl.analysis.intervals import SAMPLED
 from contextrl.analysis.report import Section, render
-from contextrl.experiments.analyze import (
-    MISSING_TEXT,
+from contextrl.analysis.scores import (
     agent_label,
+    interval_title,
+    magnitude_lines,
+    missing_rows,
+    return_lines,
+    score_intervals,
+    score_matrices,
+)
+from contextrl.experiments.plan import expand
+from contextrl.experiments.reports import (
+    MISSING_TEXT,
     changed_features,
     curves_by_label,
     figure,
-    interval_title,
-    missing_rows,
-    return_lines,
     run_cells,
-    score_intervals,
-    score_matrices,
     varying_features,
 )
-from contextrl.experiments.protocols import expand
 from contextrl.experiments.runs import RunDir, write_text
-from contextrl.experiments.sensitivity import magnitude_lines
 from contextrl.experiments.spec import SpecError
 
 
@@ -65,7 +67,7 @@ def _feature_lines(results: pd.DataFrame) -> list[tuple[str, dict]]:
 
 def _differences(specs: Sequence, plans: Sequence) -> dict[str, list[str]]:
     """What sets the runs' axes apart, per run: protocol, environment and the context features
-    their contexts change (``analyze.changed_features``); only the keys on which runs differ."""
+    their contexts change (``reports.changed_features``); only the keys on which runs differ."""
     keys = {
         "protocol": [spec.protocol for spec in specs],
         "env": [crl.spec(spec.env).id for spec in specs],

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterator
 from tqdm import tqdm
 
 from contextrl.compile_cache import use_compilation_cache
-from contextrl.experiments.protocols import Plan, expand
+from contextrl.experiments.plan import Plan, expand
 from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.runs import RunDir, Summary

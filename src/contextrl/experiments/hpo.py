@@ -30,11 +30,12 @@ import yaml
 from contextrl.agents import ConfigError, evaluate, get_agent, load_checkpoint, save_checkpoint
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
+from contextrl.analysis.scores import score_matrices
 from contextrl.compile_cache import use_compilation_cache
-from contextrl.experiments.analyze import figure, score_matrices
-from contextrl.experiments.protocols import TEST_KEY, train_and_test_sets
+from contextrl.experiments.plan import TEST_KEY, train_and_test_sets
 from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
+from contextrl.experiments.reports import figure
 from contextrl.experiments.runs import Summary, write_parquet, write_text
 from contextrl.experiments.spec import (
     MAX_INT32,

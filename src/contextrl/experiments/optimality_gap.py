@@ -9,19 +9,15 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import Interval, two_sample_ci
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import (
-    CI_METRICS,
-    Scores,
+from contextrl.analysis.scores import (
+    GapStatistics,
     design_words,
-    figure,
+    gap_statistics,
     interval_title,
-    score_intervals,
-    score_matrices,
-    training_figure,
 )
-from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
+from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
+from contextrl.experiments.reports import figure, training_figure
 from contextrl.experiments.spec import (
     MAX_COUNT,
     CommonSpec,
@@ -81,87 +77,6 @@ def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-@dataclasses.dataclass(frozen=True)
-class GapStatistics:
-    """One variant's optimality gap as the report states it (bench_findings.py prints it too).
-
-    Every interval resamples the general agent's seeds (each with all its contexts) and the
-    contexts, each with its specialists: the contexts are a sample from the distribution the gap is
-    defined over."""
-
-    general: Scores
-    specialists: Scores
-    gap: Interval  # E_c[G_specialist(c) − G_general(c)]
-    differences: dict  # specialists' minus the general agent's mean, median and IQM
-    improvement: Interval  # P(a specialist beats the general agent on a context)
-    finished: dict  # the fraction of cells at the best return: general, specialists, difference
-    aggregates: list  # mean, median, IQM with their intervals, one row per agent
-    intervals: dict  # the same intervals for the figure
-
-    def per_seed(self) -> dict[str, np.ndarray]:
-        """Each seed's mean return over its contexts: shows a gap carried by a few failed seeds."""
-        return {
-            "general": np.ma.filled(np.ma.mean(self.general.matrix, axis=1), np.nan),
-            "specialists": np.ma.filled(np.ma.mean(self.specialists.matrix, axis=1), np.nan),
-        }
-
-
-def _aggregate_difference(aggregate):
-    """Specialists' (second argument) aggregate minus the general agent's (first)."""
-    return lambda general, specialists: aggregate(specialists) - aggregate(general)
-
-
-def gap_statistics(spec: OptimalityGapSpec, cells: pd.DataFrame) -> dict[str, GapStatistics]:
-    """Per variant with both kinds finished, the gap, the differences of the aggregates, the
-    probability of improvement and the finished fractions, with intervals from the spec's seed."""
-    out = {}
-    for variant in spec.variants:
-        mine = cells[cells["variant"] == variant]
-        scores = score_matrices(mine, mine["kind"])
-        g, s = scores.get("general"), scores.get("specialist")
-        if g is None or s is None or not (g.present and s.present):
-            continue
-        if [c for _, c in g.contexts] != [c for _, c in s.contexts]:
-            raise ValueError(
-                f"optimality gap ({variant}): the general agent was tested on contexts "
-                f"{[c for _, c in g.contexts]} but the specialists on {[c for _, c in s.contexts]}"
-            )
-        out[variant] = _gap(spec, g, s)
-    return out
-
-
-def _gap(spec: OptimalityGapSpec, g: Scores, s: Scores) -> GapStatistics:
-    design = {"contexts": spec.test_contexts, "reps": spec.bootstrap_reps, "seed": spec.seed}
-    cis, rows = score_intervals({"general": g, "specialists": s}, **design)
-
-    def interval(metric, first=g, second=s):
-        return two_sample_ci(
-            first.matrix, second.matrix, metric, units=(first.unit, second.unit), **design
-        )
-
-    threshold = metrics.near_best_threshold(g.matrix, s.matrix)
-    return GapStatistics(
-        g,
-        s,
-        interval(metrics.context_optimality_gap),
-        {
-            name: interval(_aggregate_difference(aggregate))
-            for name, aggregate in CI_METRICS.items()
-        },
-        interval(metrics.probability_of_improvement, s, g),
-        {
-            "threshold": threshold,
-            "general": metrics.fraction_solved(g.matrix, threshold),
-            "specialists": metrics.fraction_solved(s.matrix, threshold),
-            "difference": interval(
-                _aggregate_difference(lambda m: metrics.fraction_solved(m, threshold))
-            ),
-        },
-        rows,
-        cis,
-    )
-
-
 def _per_seed_text(stats: GapStatistics) -> str:
     seeds = stats.per_seed()
     return (
@@ -175,7 +90,7 @@ def _per_seed_text(stats: GapStatistics) -> str:
 
 def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
     sections = []
-    for variant, stats in gap_statistics(spec, cells).items():
+    for variant, stats in gap_statistics(cells, spec.variants, **spec.design).items():
         g, s = stats.general, stats.specialists
         best = float(max(g.values.max(), s.values.max()))
         finished = stats.finished

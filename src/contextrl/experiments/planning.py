@@ -23,7 +23,7 @@ import yaml
 
 from contextrl.agents import ConfigError
 from contextrl.experiments.executors import PROGRESS_LINE
-from contextrl.experiments.protocols import Plan, expand
+from contextrl.experiments.plan import Plan, expand
 from contextrl.experiments.spec import CommonSpec, spec_to_dict
 from contextrl.experiments.trials import TRAIN_EVAL_CONTEXTS, run_chunk
 

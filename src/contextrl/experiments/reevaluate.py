@@ -20,8 +20,7 @@ import pandas as pd
 
 from contextrl.agents import evaluate, load_checkpoint
 from contextrl.context.distributions import draw
-from contextrl.experiments.analyze import build_report
-from contextrl.experiments.protocols import (
+from contextrl.experiments.plan import (
     ContextSet,
     context_columns,
     expand,
@@ -29,6 +28,7 @@ from contextrl.experiments.protocols import (
     trial_columns,
     trial_key,
 )
+from contextrl.experiments.reports import build_report
 from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import SpecError, check_int, distribution_to_yaml
 from contextrl.experiments.trials import host_context_input, host_returns

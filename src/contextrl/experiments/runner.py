@@ -8,9 +8,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from contextrl.compile_cache import use_compilation_cache
-from contextrl.experiments.analyze import build_report
 from contextrl.experiments.executors import EXECUTORS, run_chunks
-from contextrl.experiments.protocols import expand
+from contextrl.experiments.plan import expand
+from contextrl.experiments.reports import build_report
 from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
 from contextrl.xla_flags import xla_cpu_workaround

@@ -11,9 +11,10 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
+from contextrl.analysis.scores import DEFAULT_LABEL, magnitude_lines, natural_key
 from contextrl.context.features import ContextError
-from contextrl.experiments.analyze import figure, natural_key, return_lines, training_figure
-from contextrl.experiments.protocols import ContextSet, Plan, grid
+from contextrl.experiments.plan import ContextSet, Plan, grid
+from contextrl.experiments.reports import figure, training_figure
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
@@ -21,8 +22,6 @@ from contextrl.experiments.spec import (
     check_number,
     register_protocol,
 )
-
-DEFAULT_LABEL = "(default)"  # the feature label of the shared default-context evaluation
 
 
 @register_protocol
@@ -148,20 +147,6 @@ def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
         ),
     }
     return sets, grid(spec, "default", "default", "scaled")
-
-
-def magnitude_lines(
-    cells: pd.DataFrame, label: str = "variant"
-) -> dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
-    """Per feature: {label: (magnitudes, returns shaped seeds × magnitudes)}, from the score cells
-    (``label`` names the column that tells the lines apart); the one default evaluation is every
-    feature's A = 1 point."""
-    default = cells[cells["feature"] == DEFAULT_LABEL]
-    out = {}
-    for feature in [f for f in cells["feature"].unique() if f != DEFAULT_LABEL]:
-        rows = pd.concat([cells[cells["feature"] == feature], default])
-        out[feature] = return_lines(rows, "magnitude", rows[label])
-    return out
 
 
 def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:

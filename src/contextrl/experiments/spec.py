@@ -250,6 +250,12 @@ class CommonSpec:
     # ``execute(run, plan, *, executor, address, max_chunks, progress) -> Summary``.
     execute: ClassVar[Callable[..., Any] | None] = None
 
+    @property
+    def design(self) -> dict[str, Any]:
+        """How the report's intervals resample (the keywords of the statistics in
+        :mod:`contextrl.analysis.scores`): the test contexts' part, replicates, and the seed."""
+        return {"contexts": self.test_contexts, "reps": self.bootstrap_reps, "seed": self.seed}
+
     def validate(self) -> None:
         check_int("seeds", self.seeds, 1)
         check_int("seed", self.seed, 0, 2**32 - 1)
@@ -340,12 +346,12 @@ class CommonSpec:
 
     # ---- the protocol: what subclasses implement -------------------------------------------------
     def expand(self) -> tuple[dict, list]:
-        """Named context sets and the trials (see :mod:`contextrl.experiments.protocols`)."""
+        """Named context sets and the trials (see :mod:`contextrl.experiments.plan`)."""
         raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
 
     def sections(self, plan, results, curves) -> list:
         """The protocol's report sections from its results and training curves; a protocol that
-        trains agents gets its results as score cells (``analyze.score_cells``: a row per agent
+        trains agents gets its results as score cells (``contextrl.analysis.scores.score_cells``: a row per agent
         kind, variant, test set, context and seed, missing ones named), so every section of a
         report reads the same numbers."""
         raise NotImplementedError

@@ -25,7 +25,8 @@ import pandas as pd
 
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import figure, natural_key
+from contextrl.analysis.scores import natural_key
+from contextrl.experiments.reports import figure
 from contextrl.experiments.runs import Summary, write_parquet
 from contextrl.experiments.spec import (
     CommonSpec,

@@ -15,16 +15,11 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
+from contextrl.analysis.scores import score_intervals, score_matrices
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
-from contextrl.experiments.analyze import (
-    curves_by_variant,
-    figure,
-    plane_points,
-    score_intervals,
-    score_matrices,
-)
-from contextrl.experiments.protocols import TRAIN_KEY, ContextSet, Plan, grid
+from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, grid
+from contextrl.experiments.reports import curves_by_variant, figure, plane_points
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,

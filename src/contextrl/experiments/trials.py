@@ -20,13 +20,7 @@ import pandas as pd
 from contextrl.agents import evaluate, get_agent
 from contextrl.agents.host import HostCollector
 from contextrl.agents.networks import ContextInput, context_input
-from contextrl.experiments.protocols import (
-    Plan,
-    context_columns,
-    stack_sets,
-    trial_columns,
-    trial_key,
-)
+from contextrl.experiments.plan import Plan, context_columns, stack_sets, trial_columns, trial_key
 
 TRAIN_EVAL_CONTEXTS = 16
 

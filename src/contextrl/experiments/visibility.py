@@ -10,15 +10,9 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import two_sample_ci
 from contextrl.analysis.report import Section
-from contextrl.experiments.analyze import (
-    curves_by_variant,
-    design_words,
-    figure,
-    interval_title,
-    score_intervals,
-    score_matrices,
-)
-from contextrl.experiments.protocols import Plan, grid, train_and_test_sets
+from contextrl.analysis.scores import design_words, interval_title, score_intervals, score_matrices
+from contextrl.experiments.plan import Plan, grid, train_and_test_sets
+from contextrl.experiments.reports import curves_by_variant, figure
 from contextrl.experiments.spec import CommonSpec, check_int, register_protocol
 
 
@@ -58,7 +52,7 @@ def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
 def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
     scores = score_matrices(cells, cells["variant"])
     contexts = spec.test_contexts
-    cis, rows = score_intervals(scores, contexts=contexts, reps=spec.bootstrap_reps, seed=spec.seed)
+    cis, rows = score_intervals(scores, **spec.design)
     text = [
         f"{spec.agent} agents with context visibility {list(spec.variants)} trained on "
         f"{spec.num_train_contexts} contexts and tested on {spec.num_test_contexts} held-out contexts "

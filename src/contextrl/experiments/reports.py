@@ -3,9 +3,7 @@ sections (``spec.sections``), failures and the spec; plus the helpers protocols 
 
 from __future__ import annotations
 
-import dataclasses
-import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -13,10 +11,22 @@ import pandas as pd
 import yaml
 
 import contextrl as crl
-from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import RUNS, SAMPLED, SEEDS, Interval, interval_estimates
+from contextrl.analysis import plots
+from contextrl.analysis.intervals import SAMPLED
 from contextrl.analysis.report import Figure, Section, render
-from contextrl.experiments.protocols import (
+from contextrl.analysis.scores import (
+    LEARNED_MARGIN,
+    agent_label,
+    interval_title,
+    learned,
+    missing_rows,
+    natural_key,
+    return_lines,
+    score_cells,
+    score_intervals,
+    score_matrices,
+)
+from contextrl.experiments.plan import (
     TRIAL_COLUMNS,
     Plan,
     Trial,
@@ -27,208 +37,15 @@ from contextrl.experiments.protocols import (
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import CommonSpec, spec_to_dict
 
-CI_METRICS = {
-    "mean": metrics.aggregate_mean,
-    "median": metrics.aggregate_median,
-    "IQM": metrics.aggregate_iqm,
-}
-# Trained agents "clearly beat" the random policy on their training contexts when their mean return
-# is above the random policy's by at least this fraction of the larger of |random return| and 1.
-LEARNED_MARGIN = 0.1
 AGENT_FIELDS = (
     "agent_options", "variants", "seeds", "eval_episodes", "max_steps", "batch_size", "bootstrap_reps"
 )  # fmt: skip
-
-
-CELL = ("kind", "variant", "test_set", "context", "seed")  # the key of a score cell
-
-
-def score_cells(rows: pd.DataFrame) -> pd.DataFrame:
-    """The one aggregation every number of a report is read from: a row per (agent kind, variant,
-    test set, context, seed) cell, so two sections can never key the same returns differently.
-
-    ``context`` is the ``context`` label where the protocol writes one (the optimality gap: a
-    specialist's one-context test set is context i of the training contexts), else the index in
-    the test set. ``return`` is the mean over the cell's rows (several only where agents of one kind
-    share the contexts: the specialists in ``contextrl eval``; ``trials`` counts them); NaN where no
-    row has a finite return, ``missing`` then saying why (the rows of :func:`absent_rows`, or the
-    non-finite return). Every other column keeps its first value (features, labels, the trial).
-    """
-    context = rows["context"] if "context" in rows else rows["context_index"]
-    values = rows["return"].to_numpy(float)
-    finite = np.isfinite(values)
-    known = rows["missing"].fillna("") if "missing" in rows else [""] * len(rows)
-    why = [
-        w or ("" if ok else f"its return is {v}")
-        for w, v, ok in zip(known, values, finite, strict=True)
-    ]
-    rows = rows.assign(context=context, missing=why, **{"return": np.where(finite, values, np.nan)})
-    grouped = rows.groupby(list(CELL), sort=False, dropna=False)
-    cells = grouped.first()
-    cells["return"] = grouped["return"].mean()
-    cells["trials"] = grouped["trial"].nunique()
-    cells["missing"] = grouped["missing"].agg(
-        lambda reasons: "; ".join(dict.fromkeys(r for r in reasons if r))
-    )
-    return cells.reset_index()
-
-
-@dataclasses.dataclass(frozen=True)
-class Scores:
-    """One agent's score matrix, seeds × (test set, context) columns, masked where a cell is missing,
-    with each missing cell as (seed, test set, context, why), and the unit its intervals resample:
-    ``SEEDS`` where one agent per seed was tested on every context, ``RUNS`` where every cell is an
-    agent of its own (the specialists of the optimality gap)."""
-
-    matrix: np.ndarray
-    contexts: tuple[tuple[str, Any], ...]
-    missing: tuple[tuple[Any, str, Any, str], ...]
-    unit: str = SEEDS
-
-    @property
-    def present(self) -> int:
-        """How many cells have a return: what every statistic of the agent is computed on."""
-        return int(self.matrix.size - np.ma.count_masked(self.matrix))
-
-    @property
-    def values(self) -> np.ndarray:
-        """The returns that exist, flattened."""
-        return np.ma.compressed(self.matrix)
-
-    def cells_note(self) -> str:
-        """The cells a statistic is computed on, said in the report next to it."""
-        seeds, contexts = self.matrix.shape
-        shape = f"{seeds} seeds × {contexts} contexts"
-        if self.present == self.matrix.size:
-            return f"all {self.matrix.size} ({shape})"
-        return f"{self.present} of {self.matrix.size} ({shape}; the missing under Missing results)"
-
-
-def score_matrices(cells: pd.DataFrame, labels: pd.Series | None = None) -> dict[str, Scores]:
-    """Per label (default: :func:`agent_label`), naturally sorted, the :class:`Scores` of its cells
-    (from :func:`score_cells`); a label whose rows share a cell (two kinds or variants under one
-    label) is refused rather than averaged."""
-    labels = agent_label(cells) if labels is None else labels
-    out = {}
-    for name, group in sorted(cells.groupby(labels, sort=False), key=lambda g: natural_key(g[0])):
-        indexed = group.set_index(["seed", "test_set", "context"])
-        if indexed.index.has_duplicates:
-            raise ValueError(
-                f"score matrix {name!r}: several agents share a (seed, test set, context) cell; "
-                "label each kind and variant apart"
-            )
-        wide = indexed["return"].unstack(["test_set", "context"])
-        columns = sorted(wide.columns, key=lambda c: (natural_key(c[0]), natural_key(c[1])))
-        wide = wide[columns].sort_index()
-        matrix = np.ma.masked_invalid(wide.to_numpy(float))
-        why = indexed["missing"]
-        missing = tuple(
-            (
-                seed,
-                test_set,
-                context,
-                why.get((seed, test_set, context)) or "no result, no record why",
-            )
-            for seed, row in zip(wide.index, np.ma.getmaskarray(matrix), strict=True)
-            for (test_set, context), absent in zip(columns, row, strict=True)
-            if absent
-        )
-        out[name] = Scores(
-            matrix if missing else matrix.data, tuple(columns), missing, _unit(group)
-        )
-    return out
-
-
-def _unit(cells: pd.DataFrame) -> str:
-    """``RUNS`` when every cell is one agent that no other cell shares (each specialist tested on
-    its own context), else ``SEEDS`` (a seed's agent, or agents, tested on several contexts)."""
-    own = (cells["trials"] == 1).all() and not cells["trial"].duplicated().any()
-    return RUNS if own and cells["context"].nunique() > 1 else SEEDS
-
-
-def design_words(scores: Mapping[str, Scores], contexts: str) -> str:
-    """What the intervals of ``scores`` resample, in the words a report prints beside them."""
-    units = {s.unit for s in scores.values()}
-    seeds = "seeds (each with all its contexts)" if SEEDS in units else ""
-    if contexts == SAMPLED:
-        drawn = "the test contexts" + (", each with its runs" if RUNS in units else "")
-        return f"{seeds} and {drawn}" if seeds else drawn
-    runs = "each context's runs" if RUNS in units else ""
-    return " and ".join(part for part in (seeds, runs) if part)
-
-
-def score_intervals(
-    scores: Mapping[str, Scores],
-    *,
-    contexts: str,
-    reps: int,
-    seed: int,
-    metrics_: Mapping[str, Callable] = CI_METRICS,
-) -> tuple[dict[str, dict[str, Interval]], list[dict]]:
-    """Bootstrap intervals of every agent with a present cell, each resampling its own unit (and
-    the test contexts where ``contexts`` is ``SAMPLED``), and a table row per agent saying which cells
-    its statistics are computed on (an agent with none says so instead)."""
-    shown_scores = {name: s for name, s in scores.items() if s.present}
-    intervals = interval_estimates(
-        {name: s.matrix for name, s in shown_scores.items()},
-        metrics_,
-        units={name: s.unit for name, s in shown_scores.items()},
-        contexts=contexts,
-        reps=reps,
-        seed=seed,
-    )
-
-    def shown(name: str, metric: str) -> str:
-        if name not in intervals:
-            return "no result"
-        if scores[name].matrix.shape[0] == 1:  # resampling one seed gives a zero-width interval
-            return f"{intervals[name][metric].point:.4g} ({ONE_SEED})"
-        return str(intervals[name][metric])
-
-    rows = [
-        {
-            "agent": name,
-            **{metric: shown(name, metric) for metric in metrics_},
-            "cells (seeds × contexts)": s.cells_note(),
-        }
-        for name, s in scores.items()
-    ]
-    return intervals, rows
-
-
-ONE_SEED = "no interval with one seed"
-
-
-def interval_title(title: str, scores: Mapping[str, Scores], contexts: str) -> str:
-    """``title (95% CI over …)`` naming what was resampled, or ``title (no interval with one
-    seed)`` when every agent has one seed: a bootstrap over one seed is zero wide, which a "95% CI"
-    label would present as certainty."""
-    several = any(s.matrix.shape[0] > 1 for s in scores.values())
-    return f"{title} ({f'95% CI over {design_words(scores, contexts)}' if several else ONE_SEED})"
 
 
 MISSING_TEXT = (
     "Some planned results are missing (each is listed under Missing results with why); every "
     "statistic is computed on the cells that exist, and says on how many."
 )
-
-
-def missing_rows(scores: Mapping[str, Scores]) -> list[dict]:
-    """One row per agent, seed, test set and reason: the contexts that have no result."""
-    grouped: dict[tuple, list] = {}
-    for name, s in scores.items():
-        for seed, test_set, context, why in s.missing:
-            grouped.setdefault((name, seed, test_set, why), []).append(context)
-    return [
-        {
-            "agent": name,
-            "seed": seed,
-            "test set": test_set,
-            "contexts": ", ".join(str(c) for c in contexts),
-            "why": why,
-        }
-        for (name, seed, test_set, why), contexts in grouped.items()
-    ]
 
 
 def absent_rows(
@@ -280,15 +97,6 @@ def run_cells(run: RunDir, plan: Plan, results: pd.DataFrame) -> pd.DataFrame:
 
 def figure(name: str, matplotlib_figure, caption: str) -> Figure:
     return Figure(name, plots.to_png(matplotlib_figure), caption)
-
-
-def natural_key(text: Any) -> tuple:
-    """Sort key that orders embedded numbers by value: random-2 before random-10."""
-    return tuple(
-        (0, int(part), "") if part.isdigit() else (1, 0, part)
-        for part in re.split(r"(\d+)", str(text))
-        if part
-    )
 
 
 def changed_features(plan) -> list[str]:
@@ -368,13 +176,6 @@ def plane_points(cells: pd.DataFrame, x_name: str, y_name: str, by: list[str]) -
     return points.dropna(subset=["value"])
 
 
-def agent_label(frame: pd.DataFrame) -> pd.Series:
-    """The variant, prefixed by the trial kind when a run has several kinds (general/specialist…)."""
-    if frame["kind"].nunique() > 1:
-        return frame["kind"].astype(str) + ", " + frame["variant"].astype(str)
-    return frame["variant"].astype(str)
-
-
 def training_figure(spec: CommonSpec, curves: pd.DataFrame, name: str = "training-curves"):
     """Training curves with a 95 % bootstrap band over seeds, one line per agent label."""
     steps, by_label = curves_by_label(curves, agent_label)
@@ -452,16 +253,6 @@ def per_context_wide(table: pd.DataFrame) -> pd.DataFrame:
     return wide
 
 
-def _binned(x: np.ndarray, bins: int = 12) -> np.ndarray:
-    """Each value's bin centre: the values themselves when there are few, else equal-width bins."""
-    unique = np.unique(x)
-    if unique.size <= 2 * bins:
-        return x
-    edges = np.linspace(unique[0], unique[-1], bins + 1)
-    index = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
-    return ((edges[:-1] + edges[1:]) / 2)[index]
-
-
 def _train_range(plan, results: pd.DataFrame, feature: str) -> tuple[float, float] | None:
     if "train_set" not in results:
         return None
@@ -474,23 +265,6 @@ def _train_range(plan, results: pd.DataFrame, feature: str) -> tuple[float, floa
         return None
     every = np.concatenate([v.ravel() for v in values])
     return float(every.min()), float(every.max())
-
-
-def return_lines(
-    results: pd.DataFrame, column: str, labels: pd.Series | None = None
-) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per label (default: the agent label): x (the value of ``column``, binned when there are many)
-    and the mean return of each seed there, shaped seeds × points (masked where a seed has none)."""
-    labels = agent_label(results) if labels is None else labels
-    frame = results.assign(agent=labels, x=_binned(results[column].to_numpy(float)))
-    lines = {}
-    for label in sorted(frame["agent"].unique(), key=natural_key):
-        group = frame[frame["agent"] == label]
-        wide = group.pivot_table(index="seed", columns="x", values="return", aggfunc="mean")
-        if wide.shape[1]:  # a seed without a return at a point is masked there, not dropped
-            runs = np.ma.masked_invalid(wide.to_numpy(float))
-            lines[label] = (wide.columns.to_numpy(float), runs if runs.mask.any() else runs.data)
-    return lines
 
 
 def per_context_section(
@@ -573,7 +347,7 @@ def per_context_section(
             f"{int(group['trials'].max())} agents (trained on different contexts)."
         )
     scores = score_matrices(cells)
-    _, rows = score_intervals(scores, contexts=contexts, reps=spec.bootstrap_reps, seed=spec.seed)
+    _, rows = score_intervals(scores, **{**spec.design, "contexts": contexts})
     intervals = (interval_title("Test return", scores, contexts), rows)
     return Section(title, text, [intervals, (caption, shown), *tables], figures)
 
@@ -628,11 +402,6 @@ def evaluation_sections(run: RunDir, spec: CommonSpec, results: pd.DataFrame) ->
             )
         )
     return sections
-
-
-def learned(trained: float, random: float) -> bool:
-    """Whether a mean trained return clearly beats the random policy's (see LEARNED_MARGIN)."""
-    return trained - random >= LEARNED_MARGIN * max(abs(random), 1.0)
 
 
 def learning_section(spec: CommonSpec, training: pd.DataFrame, plan: Plan) -> Section:

@@ -1,0 +1,242 @@
+"""The paper's figures: each one's spec files (``specs/<figure>.yaml``, or one per part for a figure of
+several runs, such as PB2 with the context hidden and visible), the check that decides its claim, and
+a smaller budget for two CPU cores; a spec at any scale (paper, small, tiny)."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from contextrl.agents import ConfigError
+from contextrl.experiments.spec import SpecError, load_yaml, parse_spec
+from contextrl.paper.checks import (
+    GATE,
+    Check,
+    better_check,
+    gap_check,
+    kirk_check,
+    sensitivity_check,
+    similar_check,
+    tabular_check,
+)
+
+SPEC_FOLDER = Path(__file__).resolve().parent / "specs"
+
+
+SCALES = ("paper", "small", "tiny")
+
+
+@dataclasses.dataclass(frozen=True)
+class PaperFigure:
+    """A figure of the paper: its spec file(s), the check of its claim and its small budget."""
+
+    name: str
+    check: Check
+    small: Mapping[str, Any]  # spec fields for two CPU cores (agent_options merge into the spec's)
+    parts: tuple[str, ...] = ()  # spec files (stems) of a figure of several runs
+
+    def files(self) -> dict[str, Path]:
+        stems = self.parts or (self.name,)
+        return {
+            stem.removeprefix(self.name + "_") or stem: SPEC_FOLDER / f"{stem}.yaml"
+            for stem in stems
+        }
+
+    def header(self, key: str, part: str | None = None) -> str:
+        """The ``# Key:`` header of the figure's first spec (or of ``part``), with its
+        continuation lines (``# `` lines up to the next key) joined."""
+        path = self.files()[part] if part else next(iter(self.files().values()))
+        found, inside = [], False
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if not line.startswith("#"):
+                break
+            body = line[1:].strip()
+            starts = re.match(r"[A-Z][a-z]+:", body)
+            if starts:
+                inside = body.startswith(f"{key}:")
+                body = body[len(key) + 1 :].strip() if inside else body
+            if inside:
+                found.append(body)
+        return " ".join(found)
+
+    @property
+    def rule(self) -> str:
+        """The decision rule, as the spec's ``# Decision:`` line and the page state it."""
+        return self.check.rule + (f" {GATE}" if self.check.gated else "")
+
+    @property
+    def stated_budget(self) -> bool:
+        """Whether the paper states the budget its ``paper`` scale runs (else: a full budget)."""
+        return self.header("Budget").startswith("the paper's")
+
+
+def _smallest_budget(spec, options: dict) -> int:
+    """The smallest power-of-two step budget (from 256) the agent accepts for every variant."""
+    budget = 256
+    while True:
+        try:
+            for variant in spec.variants:
+                spec.agent_entry().config(spec.env, {**options, "total_timesteps": budget}, variant)
+            return budget
+        except ConfigError:
+            if budget >= 1 << 20:
+                raise
+            budget *= 2
+
+
+def _tiny(data: dict) -> dict:
+    """A smoke-test budget: every protocol step runs once, in seconds to a minute; decides nothing."""
+    spec = parse_spec(data)
+    out = copy.deepcopy(data)
+    fields = {f.name for f in dataclasses.fields(spec)}
+    small = {
+        "seeds": 2, "eval_episodes": 1, "max_steps": 20, "num_contexts": 2, "batch_size": 4,
+        "num_train_contexts": 4, "num_test_contexts": 4, "population": 2, "rounds": 1,
+        "num_random": 1, "magnitudes": [0.5, 1.0], "bootstrap_reps": 50,
+    }  # fmt: skip
+    out.update({k: v for k, v in small.items() if k in fields and k not in spec.unused_fields})
+    if spec.protocol == "sensitivity":
+        out["features"] = list(spec.feature_names()[:2])
+    if spec.trains_agents:
+        names = spec.agent_entry().option_names()
+        options = {
+            "learning_starts": 32, "num_envs": 2, "num_steps": 16, "batch_size": 16,
+            "log_every": 64, "hidden_sizes": [16, 16],
+        }  # fmt: skip
+        merged = {
+            **out.get("agent_options", {}),
+            **{k: v for k, v in options.items() if k in names},
+        }
+        budget = _smallest_budget(spec, merged)
+        if spec.protocol == "hpo":  # a member trains steps_per_round steps a round
+            out["steps_per_round"] = budget
+        else:
+            merged["total_timesteps"] = budget
+        out["agent_options"] = merged
+    return out
+
+
+def spec_data(figure: PaperFigure, part: str, scale: str) -> dict:
+    """The spec of one part of ``figure`` at ``scale`` (paper: the file as it ships)."""
+    if scale not in SCALES:
+        raise SpecError(f"scale: unknown scale {scale!r}; choose one of {list(SCALES)}")
+    path = figure.files()[part]
+    data = load_yaml(path.read_text(encoding="utf-8"), str(path))
+    if scale == "small":
+        for key, value in figure.small.items():
+            data[key] = {**data.get(key, {}), **value} if key == "agent_options" else value
+    elif scale == "tiny":
+        data = _tiny(data)
+    data["name"] = f"{data['name']}-{scale}"
+    return data
+
+
+_SMALL_C51 = {"agent_options": {"total_timesteps": 30000}}
+
+
+_SMALL_SAC = {"agent_options": {"total_timesteps": 20000}}
+
+
+FIGURES = {
+    f.name: f
+    for f in [
+        PaperFigure("tabular_cmdp", tabular_check, {}),
+        PaperFigure(
+            "ecdf_pendulum",
+            sensitivity_check(
+                harmless=("initial_angle_max", "initial_velocity_max"),
+                brittle=("max_speed", "dt", "g", "l"),
+            ),
+            {"seeds": 3, "eval_episodes": 5},
+        ),
+        PaperFigure(
+            "optgap_cartpole",
+            gap_check(30.0, finished=True),
+            {**_SMALL_C51, "num_contexts": 8, "seeds": 3, "batch_size": 9},
+        ),
+        PaperFigure(
+            "optgap_pendulum", gap_check(0.0), {"num_contexts": 8, "seeds": 3, "batch_size": 9}
+        ),
+        PaperFigure(
+            "visibility_dmcwalker",
+            better_check("concat_varying", "hidden"),
+            {
+                "agent_options": {"total_timesteps": 60000},
+                "seeds": 2,
+                "max_steps": 200,
+                "num_test_contexts": 20,
+            },
+        ),
+        PaperFigure(
+            "visibility_pendulum",
+            similar_check("concat_varying", "hidden"),
+            {"seeds": 5, "num_test_contexts": 50, "eval_episodes": 5},
+        ),
+        *(
+            PaperFigure(
+                name,
+                check,
+                {
+                    **small,
+                    "seeds": 3,
+                    "num_train_contexts": 200,
+                    "num_test_contexts": 225,
+                    "eval_episodes": 2,
+                },
+            )  # fmt: skip
+            for name, check, small in (
+                ("kirk_cartpole", kirk_check(concat_extrapolates=True), _SMALL_C51),
+                ("kirk_pendulum_gravity_dt", kirk_check(), _SMALL_SAC),
+                ("kirk_pendulum_gravity_length", better_check("hidden", "concat_varying"), {}),
+            )
+        ),
+        *(
+            figure
+            for env, small in (
+                ("pendulum", {}),
+                ("mountaincar", _SMALL_C51),
+                ("cartpole", _SMALL_C51),
+                ("acrobot", _SMALL_C51),
+                ("lunarlander", _SMALL_C51),
+            )
+            for figure in (
+                PaperFigure(
+                    f"baseline_{env}_default",
+                    sensitivity_check(),
+                    {**small, "seeds": 3, "eval_episodes": 5},
+                ),
+                PaperFigure(
+                    f"baseline_{env}_visibility",
+                    better_check("concat_varying", "hidden"),
+                    {**small, "seeds": 3, "num_train_contexts": 32, "num_test_contexts": 32},
+                ),
+            )
+        ),
+        *(
+            PaperFigure(
+                f"ecdf_{env}",
+                sensitivity_check(),
+                {"agent_options": {"total_timesteps": 20000}, "seeds": 2, "eval_episodes": 2},
+            )
+            for env in ("bipedalwalker", "dmcfish", "dmcquadruped", "dmcwalker")
+        ),
+        *(
+            PaperFigure(
+                f"pb2_{env}",
+                better_check("hidden", "concat_all"),
+                {"population": 4, "rounds": 4, "steps_per_round": 10000},
+                parts=(f"pb2_{env}_hidden", f"pb2_{env}_visible"),
+            )
+            for env in ("acrobot", "lunarlander", "pendulum")
+        ),
+        PaperFigure(
+            "platformer_conditioning",
+            better_check("concat_varying", "hidden"),
+            {"agent_options": {"total_timesteps": 500000}, "seeds": 3},
+        ),
+    ]
+}

@@ -1,0 +1,469 @@
+"""The decision rules of the paper's claims, fixed before any run: each :class:`Check` states its rule
+and decides it from a figure's finished runs with the intervals of :mod:`contextrl.analysis.scores`,
+or gives no verdict, saying why (too few seeds, or agents that did not beat a random policy)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from contextrl.analysis import metrics
+from contextrl.analysis.intervals import SEEDS, Interval, bootstrap_ci, two_sample_ci
+from contextrl.analysis.scores import (
+    LEARNED_MARGIN,
+    design_words,
+    gap_statistics,
+    learned,
+    magnitude_lines,
+    per_seed_means,
+    score_matrices,
+    worst_drop,
+)
+from contextrl.experiments.reports import run_cells
+from contextrl.experiments.runs import RunDir
+from contextrl.experiments.train_test import REGIONS
+from contextrl.paper.plans import planned
+
+# The decision rules, fixed before any run. A verdict needs this many seeds (the unit of replication)
+MIN_SEEDS = 5
+# "No difference" holds inside ± this fraction of the agents' gain over a random policy at their
+# training contexts; a "better" claim does not hold when the difference stays below it.
+EQUIVALENCE = 0.10
+# A feature is harmless when its drop stays below HARMLESS × the gain, brittle above BRITTLE ×.
+HARMLESS, BRITTLE = 0.10, 0.50
+GATE = (
+    f"No verdict from fewer than {MIN_SEEDS} seeds, or where an agent does not beat a random policy "
+    f"at its training contexts by {LEARNED_MARGIN:.0%} of max(|random return|, 1)."
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """Whether a claim holds at the budget it ran at (None: the intervals do not decide it), or,
+    where ``withheld`` says why, no verdict at all: the evidence and what its intervals alone would
+    say (``holds``) are then shown, not judged."""
+
+    holds: bool | None
+    evidence: str
+    withheld: str = ""
+
+    @property
+    def word(self) -> str:
+        if self.withheld:
+            return "no verdict"
+        return {True: "holds", False: "does not hold", None: "undecided"}[self.holds]
+
+
+@dataclasses.dataclass(frozen=True)
+class Learning:
+    """The figure's agents at their training contexts against a random policy's on the same ones:
+    per variant and kind, (trained, random) mean returns; ``gain`` is their mean difference."""
+
+    returns: dict[str, tuple[float, float]]
+
+    @property
+    def gain(self) -> float:
+        return float(np.mean([trained - random for trained, random in self.returns.values()]))
+
+    def failed(self) -> list[str]:
+        return [name for name, pair in self.returns.items() if not learned(*pair)]
+
+    def __str__(self) -> str:
+        return "trained vs random return at the training contexts: " + ", ".join(
+            f"{name} {trained:.4g} vs {random:.4g}"
+            for name, (trained, random) in self.returns.items()
+        )
+
+
+def learning(runs: Mapping[str, RunDir]) -> Learning:
+    """Per variant and agent kind over the figure's runs, the trained and the random policy's mean
+    return on the training contexts (what the run's "Did the agents learn?" section shows)."""
+    frames = [frame for frame in (run.training() for run in runs.values()) if not frame.empty]
+    if not frames:
+        return Learning({})
+    frame = pd.concat(frames, ignore_index=True)
+    several_kinds = frame["kind"].nunique() > 1
+    returns = {}
+    for (variant, kind), group in frame.groupby(["variant", "kind"], sort=False):
+        name = f"{kind}, {variant}" if several_kinds else str(variant)
+        returns[name] = (float(group["train_return"].mean()), float(group["random_return"].mean()))
+    return Learning(returns)
+
+
+def _seeds(runs: Mapping[str, RunDir]) -> int:
+    """The fewest independently trained seeds among the runs' results (a PB2 run: its one best
+    member)."""
+    return min(int(run.results()["seed"].nunique()) for run in runs.values())
+
+
+@dataclasses.dataclass(frozen=True)
+class Check:
+    """A claim's decision rule: ``rule`` says it (each spec file's ``# Decision:`` line, and the
+    page), ``decide(runs, gain)`` applies it to the finished runs. ``gated``: the learnability gate
+    and the seed floor apply (every figure that trains agents)."""
+
+    rule: str
+    decide: Callable[[Mapping[str, RunDir], float], Verdict]
+    gated: bool = True
+
+    def __call__(self, runs: Mapping[str, RunDir]) -> Verdict:
+        """The verdict, or no verdict with the reason, always with the evidence and, for agents
+        that train, their trained and random returns."""
+        if not self.gated:
+            return self.decide(runs, np.nan)
+        learned_ = learning(runs)
+        found = self.decide(runs, learned_.gain if learned_.returns else np.nan)
+        spec = next(iter(runs.values())).spec()
+        if not spec.agent_entry().trained:
+            return Verdict(found.holds, found.evidence, f"the {spec.agent} agent does not learn")
+        evidence = f"{found.evidence}; {learned_}"
+        reasons = []
+        seeds = _seeds(runs)
+        if seeds < MIN_SEEDS:
+            reasons.append(f"{seeds} seeds, fewer than {MIN_SEEDS}")
+        failed = learned_.failed()
+        if not learned_.returns or failed:
+            which = ", ".join(failed) or "no agent has a training record"
+            reasons.append(f"the agent did not learn at this budget: {which}")
+        return Verdict(found.holds, evidence, "; ".join(reasons))
+
+
+def _decide(interval: Interval, above: float = 0.0) -> bool | None:
+    """True when the interval lies above ``above``, False when below, else None."""
+    if interval.low > above:
+        return True
+    if interval.high < above:
+        return False
+    return None
+
+
+def _all(decisions: list[bool | None]) -> bool | None:
+    """Every part holds: True; some part fails: False; else undecided."""
+    if False in decisions:
+        return False
+    return True if all(d is True for d in decisions) else None
+
+
+def _cells(run: RunDir):
+    spec = run.spec()
+    return spec, run_cells(run, planned(spec), run.results())
+
+
+def gap_check(at_least: float, finished: bool = False) -> Check:
+    """Specialists beat the general agent by more than ``at_least`` in mean, median and IQM (and,
+    where ``finished``, reach the best return in more cells: the paper's finished episodes)."""
+    parts = "mean, median and IQM" + (" and the fraction of finished episodes" if finished else "")
+    rule = (
+        f"holds when the 95% intervals of the specialists' minus the general agent's mean, median "
+        f"and IQM test return all lie above {at_least:g}"
+        + (
+            " and that of the fraction of finished episodes (cells at the best return) above 0"
+            if finished
+            else ""
+        )
+        + "; does not hold when one of them lies below; undecided otherwise. Intervals resample "
+        "the general agent's seeds (each with all its contexts) and the contexts, each with its "
+        f"specialists ({parts})."
+    )
+
+    def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+        (run,) = runs.values()
+        spec, cells = _cells(run)
+        stats = gap_statistics(cells, spec.variants, **spec.design)[spec.variants[0]]
+        seeds = stats.per_seed()
+        decisions = [_decide(d, at_least) for d in stats.differences.values()]
+        done = stats.finished
+        text = (
+            "specialists − general: "
+            + ", ".join(f"{name} {d}" for name, d in stats.differences.items())
+            + f" (95% CI; each needs to lie above {at_least:g}); "
+        )
+        if finished:
+            decisions.append(_decide(done["difference"]))
+            relative = 1 - done["general"] / done["specialists"] if done["specialists"] else np.nan
+            text += (
+                f"finished episodes (return ≥ {done['threshold']:.4g}): general "
+                f"{done['general']:.2f}, specialists {done['specialists']:.2f}, difference "
+                f"{done['difference']} (needs to lie above 0; the paper: about 40% fewer for the "
+                f"general agent, here {relative:.0%}); "
+            )
+        text += (
+            f"P(specialist > general) = {stats.improvement}; mean return per seed: general "
+            f"{_numbers(seeds['general'])}, specialists {_numbers(seeds['specialists'])}"
+        )
+        return Verdict(_all(decisions), text)
+
+    return Check(rule, decide)
+
+
+def _numbers(values) -> str:
+    return " ".join(f"{v:.0f}" for v in values)
+
+
+def _variant_difference(runs: Mapping[str, RunDir], a: str, b: str) -> tuple[dict, Interval, str]:
+    """Score matrices by variant over all the figure's runs (a part per variant, or one run), the
+    mean test return of variant ``a`` minus ``b`` with its interval, and what it resampled."""
+    scores, spec = {}, None
+    for run in runs.values():
+        spec, cells = _cells(run)
+        scores.update(score_matrices(cells, cells["variant"]))
+    diff = two_sample_ci(
+        scores[a].matrix,
+        scores[b].matrix,
+        metrics.difference_of_means,
+        units=(scores[a].unit, scores[b].unit),
+        contexts=spec.test_contexts,
+        reps=spec.bootstrap_reps,
+        seed=spec.seed,
+    )
+    return scores, diff, design_words({a: scores[a], b: scores[b]}, spec.test_contexts)
+
+
+def _means(scores: dict, a: str, b: str) -> str:
+    return ", ".join(f"{v} {metrics.aggregate_mean(scores[v].matrix):.4g}" for v in (a, b))
+
+
+def _difference_check(
+    a: str, b: str, rule: str, decide: Callable[[Interval, float], bool | None], bounds: str
+) -> Check:
+    """A claim about mean test return ``a`` − ``b``: ``decide(interval, margin)`` says whether it
+    holds, the margin being EQUIVALENCE × the agents' gain; ``bounds`` (formatted with ``margin``
+    and ``gain``) says where the evidence stands against it."""
+
+    def check(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+        scores, diff, over = _variant_difference(runs, a, b)
+        margin = EQUIVALENCE * gain
+        return Verdict(
+            decide(diff, margin),
+            f"mean test return {a} − {b} = {diff} (95% CI over {over}; "
+            + bounds.format(margin=margin, gain=gain)
+            + "); "
+            + _means(scores, a, b),
+        )
+
+    return Check(rule, check)
+
+
+def better_check(a: str, b: str) -> Check:
+    """Variant ``a``'s mean test return is above ``b``'s; not better by a meaningful amount when
+    the interval lies below the equivalence margin."""
+
+    def decide(diff: Interval, margin: float) -> bool | None:
+        return True if diff.low > 0 else (False if diff.high < margin else None)
+
+    rule = (
+        f"holds when the 95% interval of mean test return {a} − {b} lies above 0; does not hold "
+        f"when it lies below {EQUIVALENCE:.0%} of the agents' gain over a random policy at their "
+        "training contexts (not better by a meaningful amount); undecided otherwise."
+    )
+    return _difference_check(a, b, rule, decide, "holds above 0, does not hold below {margin:.4g}")
+
+
+def similar_check(a: str, b: str) -> Check:
+    """No meaningful difference between the mean test returns of ``a`` and ``b``: equivalence
+    within a margin fixed before the run, so more seeds can only sharpen the verdict."""
+
+    def decide(diff: Interval, margin: float) -> bool | None:
+        if -margin < diff.low and diff.high < margin:
+            return True
+        return False if diff.low > margin or diff.high < -margin else None
+
+    rule = (
+        f"holds when the 95% interval of mean test return {a} − {b} lies inside ± "
+        f"{EQUIVALENCE:.0%} of the agents' gain over a random policy at their training contexts; "
+        "does not hold when it lies outside that margin; undecided otherwise."
+    )
+    bounds = f"the margin ± {{margin:.4g}} = {EQUIVALENCE:.0%} of the gain {{gain:.4g}}"
+    return _difference_check(a, b, rule, decide, bounds)
+
+
+def _zone(drop: Interval, gain: float) -> str | None:
+    """harmless, moderate or brittle where the drop's interval lies in one zone, else None."""
+    if drop.high < HARMLESS * gain:
+        return "harmless"
+    if drop.low > BRITTLE * gain:
+        return "brittle"
+    if drop.low > HARMLESS * gain and drop.high < BRITTLE * gain:
+        return "moderate"
+    return None
+
+
+def sensitivity_check(harmless: tuple[str, ...] = (), brittle: tuple[str, ...] = ()) -> Check:
+    """The named features are harmless or brittle (none named: at least one of each exists).
+
+    A feature's drop is the default context's mean return minus its worst magnitude's, with an
+    interval over seeds (each seed's agent keeps all its magnitudes: the sweep is a fixed set)."""
+    zones = (
+        f"A feature is harmless when the 95% interval of its drop (the default context's mean "
+        f"return minus its worst magnitude's, over seeds) lies below {HARMLESS:.0%} of the agent's "
+        f"gain over a random policy at the default context, brittle when it lies above "
+        f"{BRITTLE:.0%}, moderate when it lies between; "
+    )
+    if harmless or brittle:
+        rule = zones + (
+            f"holds when {', '.join(harmless)} are harmless and {', '.join(brittle)} brittle; does "
+            f"not hold when one of them is shown otherwise (a harmless one's drop above "
+            f"{HARMLESS:.0%}, a brittle one's below {BRITTLE:.0%}); undecided otherwise."
+        )
+    else:
+        rule = zones + (
+            f"holds when some feature is harmless and some brittle; does not hold when every "
+            f"feature's drop lies above {HARMLESS:.0%} (none harmless) or every one below "
+            f"{BRITTLE:.0%} (none brittle); undecided otherwise."
+        )
+
+    def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+        (run,) = runs.values()
+        spec, cells = _cells(run)
+        drops = {}
+        for feature, by_variant in magnitude_lines(cells).items():
+            x, matrix = by_variant[spec.variants[0]]
+            column = int(np.flatnonzero(np.isclose(x, 1.0))[0])
+            drops[feature] = bootstrap_ci(
+                matrix,
+                lambda m, column=column: worst_drop(m, column),
+                unit=SEEDS,
+                contexts=spec.test_contexts,
+                reps=spec.bootstrap_reps,
+                seed=spec.seed,
+            )
+        if not np.isfinite(gain) or gain <= 0:
+            named = ", ".join(f"{f} {d}" for f, d in drops.items())
+            return Verdict(
+                None, f"drop per feature (95% CI over seeds): {named}; no gain to scale by"
+            )
+        zone = {f: _zone(d, gain) for f, d in drops.items()}
+        not_harmless = {f for f, d in drops.items() if d.low > HARMLESS * gain}
+        not_brittle = {f for f, d in drops.items() if d.high < BRITTLE * gain}
+
+        def named(feature: str, wanted: str, ruled_out: set[str]) -> bool | None:
+            """In the wanted zone: True; its interval rules that out: False; else undecided."""
+            if zone.get(feature) == wanted:
+                return True
+            return False if feature in ruled_out else None
+
+        if harmless or brittle:
+            holds = _all(
+                [named(f, "harmless", not_harmless) for f in harmless]
+                + [named(f, "brittle", not_brittle) for f in brittle]
+            )
+        else:
+            found = set(zone.values())
+            if {"harmless", "brittle"} <= found:
+                holds = True
+            elif not_harmless == set(drops) or not_brittle == set(drops):
+                holds = False
+            else:
+                holds = None
+        named = ", ".join(f"{f} {d}" + (f" {zone[f]}" if zone[f] else "") for f, d in drops.items())
+        return Verdict(
+            holds,
+            f"drop from the default context to the worst magnitude per feature (95% CI over "
+            f"seeds): {named}; harmless below {HARMLESS * gain:.4g}, brittle above "
+            f"{BRITTLE * gain:.4g} ({HARMLESS:.0%} and {BRITTLE:.0%} of the gain {gain:.4g})",
+        )
+
+    return Check(rule, decide)
+
+
+def _seed_interval(values: np.ndarray, spec) -> Interval:
+    """The mean of per-seed values with its interval over seeds."""
+    return bootstrap_ci(
+        values[:, None],
+        metrics.aggregate_mean,
+        unit=SEEDS,
+        reps=spec.bootstrap_reps,
+        seed=spec.seed,
+    )
+
+
+def kirk_check(combinatorial: bool = True, concat_extrapolates: bool = False) -> Check:
+    """Kirk et al.'s protocol (§6.4): for every variant, returns fall from interpolation to
+    extrapolation (both features outside the training range); where ``combinatorial``, also to the
+    combinatorial-interpolation contexts of modes B and C; where ``concat_extrapolates``, the concat
+    agent returns more than the hidden one on the extrapolation contexts."""
+    parts = ["interpolation − extrapolation (both features) per seed, for every variant"]
+    if combinatorial:
+        parts.append(
+            "interpolation (every mode) − combinatorial interpolation (modes B and C) per seed"
+        )
+    if concat_extrapolates:
+        parts.append("concat − hidden on the extrapolation contexts (one or both features)")
+    rule = (
+        "holds when the 95% intervals (over seeds, each seed's agents with all their contexts) of "
+        + "; of ".join(parts)
+        + " all lie above 0; does not hold when one lies below 0; undecided otherwise."
+    )
+
+    def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+        (run,) = runs.values()
+        spec, cells = _cells(run)
+        decisions, text = [], []
+
+        def paired(name: str, first: pd.DataFrame, second: pd.DataFrame) -> None:
+            diff = (per_seed_means(first) - per_seed_means(second)).dropna()
+            if diff.empty:
+                decisions.append(None)
+                text.append(f"{name}: no seed has returns on both")
+                return
+            found = _seed_interval(diff.to_numpy(float), spec)
+            decisions.append(_decide(found))
+            text.append(f"{name} = {found}")
+
+        for variant in spec.variants:
+            mine = cells[cells["variant"] == variant]
+            inside = mine[mine["region"] == REGIONS[0]]
+            paired(
+                f"{variant}: interpolation − extrapolation (both)",
+                inside,
+                mine[mine["region"] == REGIONS[3]],
+            )
+            if combinatorial:  # modes B and C have the combinatorial contexts (C: no other inside)
+                modes = mine[mine["kind"].isin(["modeB", "modeC"])]
+                paired(
+                    f"{variant}: interpolation − combinatorial (modes B, C)",
+                    inside,
+                    modes[modes["region"] == REGIONS[1]],
+                )
+        if concat_extrapolates:
+            outside = cells[cells["region"].isin(REGIONS[2:])]
+            concat, hidden = (
+                per_seed_means(outside[outside["variant"] == v]).dropna().to_numpy(float)
+                for v in ("concat_varying", "hidden")
+            )
+            found = two_sample_ci(
+                concat[:, None],
+                hidden[:, None],
+                metrics.difference_of_means,
+                reps=spec.bootstrap_reps,
+                seed=spec.seed,
+            )
+            decisions.append(_decide(found))
+            text.append(f"concat − hidden on extrapolation contexts = {found}")
+        return Verdict(_all(decisions), "; ".join(text) + " (95% CI over seeds; above 0 holds)")
+
+    return Check(rule, decide)
+
+
+def _tabular(runs: Mapping[str, RunDir], gain: float) -> Verdict:
+    (run,) = runs.values()
+    results = run.results()
+    gaps = (results["optimal_return"] - results["oblivious_return"]).groupby(results["trial"])
+    gap = gaps.mean()
+    paper = float(gap["paper 3-state cMDP"])
+    return Verdict(
+        paper > 1e-9,
+        f"exact gap of the best deterministic context-oblivious policy on the paper's 3-state "
+        f"cMDP: {paper:.4g}; {int((gap > 1e-9).sum())} of {len(gap)} cMDPs solved have a gap above 0",
+    )
+
+
+tabular_check = Check(
+    "holds when the exact optimality gap of the best deterministic context-oblivious policy on the "
+    "paper's 3-state cMDP is above 0 (solved exactly: no sampling, no interval).",
+    _tabular,
+    gated=False,
+)

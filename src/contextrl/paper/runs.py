@@ -1,0 +1,174 @@
+"""Running a figure and reading its runs back: ``contextrl paper run`` writes each part to
+``<root>/<figure>-<scale>/<part>`` and the figure's own report (``paper.html``: the claim, the verdict,
+the parts' figures), and records the wall time and machine, from which the catalogue's estimates are
+extrapolated."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+import jax
+
+from contextrl.analysis.report import Figure as ReportFigure
+from contextrl.analysis.report import Section, render
+from contextrl.experiments.planning import duration
+from contextrl.experiments.runner import resume, run_experiment
+from contextrl.experiments.runs import RunDir, write_text
+from contextrl.experiments.spec import SpecError, parse_spec
+from contextrl.paper.catalogue import FIGURES, PaperFigure, spec_data
+from contextrl.paper.checks import Verdict
+from contextrl.paper.plans import parsed_spec, planned, training_steps
+
+PAPER_RUNS = "results/paper"
+
+
+# The repository's kept runs, where the package is installed from a checkout (editable)
+REPOSITORY_RUNS = Path(__file__).resolve().parents[3] / PAPER_RUNS
+
+
+def kept_runs() -> Path:
+    """Where ``contextrl paper list|page`` reads runs when not told: ./results/paper, else the
+    repository's (a checkout the package is installed from); refused, saying where it looked,
+    when neither holds runs."""
+    for folder in (Path(PAPER_RUNS), REPOSITORY_RUNS):
+        if any(folder.glob("*/*/spec.yaml")):
+            return folder
+    raise SpecError(
+        f"contextrl paper: no runs in ./{PAPER_RUNS} or {REPOSITORY_RUNS}; give --runs FOLDER "
+        "(the repository keeps its runs in results/paper; contextrl paper run writes new ones)"
+    )
+
+
+def figure_folder(root: str | Path, name: str, scale: str) -> Path:
+    return Path(root) / f"{name}-{scale}"
+
+
+def finished_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str, RunDir] | None:
+    """The figure's runs at ``scale`` under ``root`` when every part has all its results."""
+    runs = {}
+    for part in figure.files():
+        run = RunDir(figure_folder(root, figure.name, scale) / part)
+        if not (run.path / "spec.yaml").exists():
+            return None
+        plan = planned(run.spec())
+        if run.results().empty or len(run.finished()) < max(len(plan.chunks), 1):
+            return None
+        runs[part] = run
+    return runs
+
+
+def wall_seconds(run: RunDir) -> float:
+    """Seconds ``contextrl paper run`` spent on the run (else its chunks' summed seconds)."""
+    return float(run.manifest().get("paper_wall_seconds", sum(run.timings().values())))
+
+
+def machine() -> str:
+    """What trained, for the wall times the page states: JAX's accelerator, else the CPU cores."""
+    device = jax.devices()[0]
+    cores = f"{os.cpu_count()} CPU cores"
+    return cores if device.platform == "cpu" else f"one {device.device_kind} and {cores}"
+
+
+def run_figure(
+    name: str,
+    scale: str = "small",
+    *,
+    root: str | Path = PAPER_RUNS,
+    executor: str = "local",
+    address: str | None = None,
+    batch_size: int | None = None,
+    progress: bool = True,
+) -> tuple[Verdict, Path]:
+    """Run (or finish) every part of a figure at ``scale``, then write the figure's report
+    (``paper.html``: the claim, the verdict and the parts' figures); returns the verdict and it.
+    ``batch_size`` sets how many trials a new part trains in one vmapped call (a GPU takes all)."""
+    figure = FIGURES[name]
+    folder = figure_folder(root, name, scale)
+    for part in figure.files():
+        path = folder / part
+        start = time.perf_counter()
+        if (path / "spec.yaml").exists():  # finish it as its own spec.yaml says
+            run, _ = resume(path, executor=executor, address=address, progress=progress)
+        else:
+            data = spec_data(figure, part, scale)
+            if batch_size is not None:
+                data["batch_size"] = batch_size
+            run, _ = run_experiment(
+                data, out=path, executor=executor, address=address, progress=progress
+            )
+        spent = time.perf_counter() - start
+        run.update_manifest(
+            paper_wall_seconds=run.manifest().get("paper_wall_seconds", 0.0) + spent,
+            paper_machine=machine(),
+        )
+    runs = finished_runs(figure, root, scale)
+    if runs is None:
+        raise RuntimeError(f"{name}: some chunks failed; rerun the same command to retry them")
+    verdict = figure.check(runs)
+    return verdict, write_text(folder / "paper.html", _figure_report(figure, scale, runs, verdict))
+
+
+def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], verdict) -> str:
+    text = [
+        f"The paper ({figure.header('Paper')}): {figure.header('Claim')}",
+        f"Decision rule: {figure.rule}",
+        f"Here, at the {scale} budget: the claim {verdict.word}"
+        + (f" ({verdict.withheld})" if verdict.withheld else "")
+        + f". {verdict.evidence}.",
+    ]
+    rows = [
+        {
+            "part": part,
+            "training steps": f"{training_steps(run.spec()):,}",
+            "time": duration(wall_seconds(run)),
+            "report": str(Path(part) / "report.html"),
+        }
+        for part, run in runs.items()
+    ]
+    figures = [
+        ReportFigure(f"{part}-{png.stem}", png.read_bytes(), f"{part}: {png.stem}")
+        for part, run in runs.items()
+        for png in sorted((run.path / "figures").glob("*.png"))
+    ]
+    sections = [Section("The paper's claim and ours", text, [("Runs", rows)], figures)]
+    return render(f"contextrl paper: {figure.name} ({scale})", sections, {"scale": scale})
+
+
+def machines(runs) -> str:
+    """Where ``runs`` trained, as their manifests say: the machine and JAX's version."""
+    manifests = [run.manifest() for run in runs]
+    named = {f"{m['paper_machine']} (JAX {m['versions']['jax']})" for m in manifests}
+    return " and ".join(sorted(named))
+
+
+def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
+    """Wall time of ``figure`` at ``scale`` and where: measured when it ran under ``root``, else
+    extrapolated from the seconds per training step of finished runs with the same environment and
+    agent (those at ``scale``, else at the small scale), else "not measured"."""
+    runs = finished_runs(figure, root, scale)
+    if runs is not None:
+        return (
+            f"{duration(sum(wall_seconds(r) for r in runs.values()))} on {machines(runs.values())}"
+        )
+    steps, keys = 0, set()
+    for part in figure.files():
+        spec = parse_spec(spec_data(figure, part, scale))
+        steps += training_steps(spec)
+        keys.add((spec.env, spec.agent))
+    for measured_scale in dict.fromkeys((scale, "small")):
+        seconds = measured_steps = 0.0
+        measured = []
+        for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
+            run = RunDir(spec_file.parent)
+            spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
+            finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
+            if (spec.env, spec.agent) in keys and finished and training_steps(spec):
+                seconds += wall_seconds(run)
+                measured_steps += training_steps(spec)
+                measured.append(run)
+        if measured_steps and steps:
+            return f"≈ {duration(steps * seconds / measured_steps)} on {machines(measured)}"
+    return "not measured"
