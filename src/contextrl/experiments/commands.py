@@ -22,7 +22,7 @@ from contextrl.experiments.executors import connect
 from contextrl.experiments.planning import describe_plan
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.reports import learning_verdict
-from contextrl.experiments.runner import prepare, report, resume
+from contextrl.experiments.runner import carry_on, open_run, prepare, report
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import (
     SPECS,
@@ -293,8 +293,7 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         if args.resume:
             _refuse_spec_options(args)
-            run = RunDir(args.resume)
-            spec = prepare(run.spec())
+            run, spec = open_run(resume=args.resume)
         else:
             notices: list[str] = []
             spec = prepare(spec_from_args(args, notices))
@@ -325,8 +324,9 @@ def run_command(args: argparse.Namespace) -> int:
             logger = TensorBoardLog(run).start()
             interrupt.on_exit.append(logger.sync)
             print(f"tensorboard: tensorboard --logdir {logger.folder}", file=sys.stderr)
-        run, summary = resume(
-            run.path,
+        summary = carry_on(
+            run,
+            spec,
             executor=args.executor,
             address=args.address,
             max_chunks=args.max_chunks,

@@ -84,6 +84,7 @@ class HPOSpec(CommonSpec):
     anneal_per_round: bool = False
 
     runs_on_ray = True
+    training_section = False  # its sections draw each member's schedule and return instead
     unused_fields = {
         "seeds": "trains a population from one base seed (set population and seed)",
         "batch_size": "trains each member on its own Ray worker",

@@ -17,7 +17,7 @@ from contextrl.analysis.scores import (
     interval_title,
 )
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
-from contextrl.experiments.reports import figure, training_figure
+from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import (
     MAX_COUNT,
     CommonSpec,
@@ -53,10 +53,7 @@ class OptimalityGapSpec(CommonSpec):
         return _expand(self)
 
     def sections(self, plan, results, curves) -> list[Section]:
-        training = (
-            [] if curves.empty else [Section("Training", figures=[training_figure(self, curves)])]
-        )
-        return _sections(self, plan, results) + training
+        return _sections(self, plan, results)
 
 
 def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:

@@ -187,10 +187,6 @@ def training_figure(spec: CommonSpec, curves: pd.DataFrame, name: str = "trainin
     )
 
 
-def curves_by_variant(curves: pd.DataFrame) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    return curves_by_label(curves, lambda frame: frame["variant"])
-
-
 PER_CONTEXT_ROWS = 30  # rows of the per-context table shown in the report (the CSV has them all)
 LABEL_COLUMNS = ("region", "mode", "feature", "magnitude", "context")
 
@@ -508,6 +504,8 @@ def build_report(run: RunDir) -> str:
     else:  # every section reads the same score cells
         cells = run_cells(run, plan, results)
         sections += spec.sections(plan, cells, curves)
+        if spec.training_section and not curves.empty:
+            sections.append(Section("Training", figures=[training_figure(spec, curves)]))
         table = per_context_table(cells)
         write_text(run.path / "results" / "per_context.csv", table.to_csv(index=False))
         if spec.per_context_figures:

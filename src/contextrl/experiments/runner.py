@@ -1,4 +1,6 @@
-"""Run, resume and report an experiment: what ``contextrl run`` and ``contextrl report`` call."""
+"""Run, resume and report an experiment: what ``contextrl run`` and ``contextrl report`` call. A run is
+opened (created, or found with its spec) and then carried on: what is unfinished runs, the report is
+written."""
 
 from __future__ import annotations
 
@@ -24,13 +26,47 @@ def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
     return parse_spec(spec)
 
 
-def _execute(
-    run: RunDir, spec: CommonSpec, executor: str, address, max_chunks, progress, verbose
-) -> Summary:
-    """Run what is unfinished in ``run``: the protocol's own ``execute`` where it has one (``verbose``:
-    it shows Ray's own output), else the plan's chunks of trials on ``executor``."""
+def check_executor(executor: str) -> None:
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
+
+
+def open_run(
+    spec: CommonSpec | Mapping[str, Any] | None = None,
+    *,
+    resume: str | os.PathLike | None = None,
+    out: str | os.PathLike | None = None,
+    root: str | os.PathLike = "runs",
+) -> tuple[RunDir, CommonSpec]:
+    """The run to carry on and its validated spec: a new run directory for ``spec`` (``out``, else a
+    fresh folder under ``root``), or, with ``resume``, the run directory there with its own spec."""
+    if (spec is None) == (resume is None):
+        raise TypeError("open_run: give a spec for a new run or resume=RUN_DIRECTORY, not both")
+    xla_cpu_workaround()  # effective when JAX has not computed anything yet here
+    use_compilation_cache()
+    if resume is not None:
+        run = RunDir(resume)
+        return run, prepare(run.spec())
+    spec = prepare(spec)
+    return RunDir.create(spec, root=root, out=None if out is None else str(out)), spec
+
+
+def carry_on(
+    run: RunDir,
+    spec: CommonSpec,
+    *,
+    executor: str = "local",
+    address: str | None = None,
+    max_chunks: int | None = None,
+    progress: bool = True,
+    verbose: bool = False,
+    report: bool = True,
+) -> Summary:
+    """Run what is unfinished in ``run`` (failed chunks are retried), then write its report: the
+    protocol's own ``execute`` where it has one (``verbose``: Ray's and Tune's own output on the
+    terminal, not in the run's ray/ray.log), else the plan's chunks of trials on ``executor``."""
+    check_executor(executor)
+    use_compilation_cache()
     plan = expand(spec)
     options = {
         "executor": executor,
@@ -39,58 +75,36 @@ def _execute(
         "progress": progress,
     }
     if spec.execute is not None:
-        return spec.execute(run, plan, **options, verbose=verbose)
-    return run_chunks(run, plan, **options, save_params=spec.agent_entry().trained)
+        summary = spec.execute(run, plan, **options, verbose=verbose)
+    else:
+        summary = run_chunks(run, plan, **options, save_params=spec.agent_entry().trained)
+    if report:
+        build_report(run)
+    return summary
 
 
 def run_experiment(
-    spec: CommonSpec | Mapping[str, Any],
+    spec: CommonSpec | Mapping[str, Any] | None = None,
     *,
+    resume: str | os.PathLike | None = None,
     out: str | os.PathLike | None = None,
     root: str | os.PathLike = "runs",
-    executor: str = "local",
-    address: str | None = None,
-    max_chunks: int | None = None,
     progress: bool = True,
-    verbose: bool = False,
-    report: bool = True,
+    **options: Any,
 ) -> tuple[RunDir, Summary]:
-    """Validate ``spec``, create its run directory, run every trial and write the report
-    (``verbose``: as for :func:`resume`)."""
-    xla_cpu_workaround()  # effective when JAX has not computed anything yet here
-    use_compilation_cache()
-    spec = prepare(spec)
-    if executor not in EXECUTORS:
-        raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
-    run = RunDir.create(spec, root=root, out=None if out is None else str(out))
-    if progress:
+    """The one entry of a run: validate ``spec`` and create its run directory, or, with ``resume``,
+    carry on the run there; run every unfinished trial and write the report (``options``: those of
+    :func:`carry_on`)."""
+    check_executor(options.get("executor", "local"))  # before a run directory is created
+    run, spec = open_run(spec, resume=resume, out=out, root=root)
+    if progress and resume is None:
         print(f"run directory: {run.path}", file=sys.stderr, flush=True)
-    summary = _execute(run, spec, executor, address, max_chunks, progress, verbose)
-    if report:
-        build_report(run)
-    return run, summary
+    return run, carry_on(run, spec, progress=progress, **options)
 
 
-def resume(
-    path: str | os.PathLike,
-    *,
-    executor: str = "local",
-    address: str | None = None,
-    max_chunks: int | None = None,
-    progress: bool = True,
-    verbose: bool = False,
-    report: bool = True,
-) -> tuple[RunDir, Summary]:
-    """Run the chunks of an interrupted run that have no results yet (failed ones are retried);
-    ``verbose``: Ray's and Tune's own output on the terminal (hpo), not in the run's ray/ray.log."""
-    xla_cpu_workaround()  # effective when JAX has not computed anything yet here
-    use_compilation_cache()
-    run = RunDir(path)
-    spec = prepare(run.spec())
-    summary = _execute(run, spec, executor, address, max_chunks, progress, verbose)
-    if report:
-        build_report(run)
-    return run, summary
+def resume(path: str | os.PathLike, **options: Any) -> tuple[RunDir, Summary]:
+    """Carry on an interrupted run: ``run_experiment(resume=path, ...)``."""
+    return run_experiment(resume=path, **options)
 
 
 def report(path: str | os.PathLike) -> str:

@@ -14,7 +14,7 @@ from contextrl.analysis.report import Section
 from contextrl.analysis.scores import DEFAULT_LABEL, magnitude_lines, natural_key
 from contextrl.context.features import ContextError
 from contextrl.experiments.plan import ContextSet, Plan, grid
-from contextrl.experiments.reports import figure, training_figure
+from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
@@ -107,7 +107,7 @@ class SensitivitySpec(CommonSpec):
         return _expand(self)
 
     def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results, curves)
+        return _sections(self, plan, results)
 
     def feature_names(self) -> tuple[str, ...]:
         space = self.space()
@@ -149,7 +149,7 @@ def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
     return sets, grid(spec, "default", "default", "scaled")
 
 
-def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
+def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
     by_feature = magnitude_lines(cells)
     rows = []
     for feature, lines in by_feature.items():
@@ -194,8 +194,6 @@ def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) ->
             "eCDF of test returns per feature and magnitude A (the scaled contexts only)",
         )
     )
-    if not curves.empty:
-        figures.append(training_figure(spec, curves))
     _, skipped = spec.scaled_values()
     ran = sorted(cells.loc[cells["return"].notna(), "variant"].unique(), key=natural_key)
     text = [

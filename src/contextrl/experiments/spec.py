@@ -243,6 +243,9 @@ class CommonSpec:
     # (resampled with the seeds), or a fixed grid or sweep the claim is about (seeds only).
     test_contexts: ClassVar[str] = SAMPLED
     draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
+    # The report draws the agents' training curves in a section of its own after the protocol's
+    # (False: the protocol's sections show training another way, as PB2's schedules).
+    training_section: ClassVar[bool] = True
     runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
     # Shared fields the protocol does not use, each with why: set off its default, one is refused.
     unused_fields: ClassVar[dict[str, str]] = {}
@@ -350,10 +353,11 @@ class CommonSpec:
         raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
 
     def sections(self, plan, results, curves) -> list:
-        """The protocol's report sections from its results and training curves; a protocol that
-        trains agents gets its results as score cells (``contextrl.analysis.scores.score_cells``: a row per agent
-        kind, variant, test set, context and seed, missing ones named), so every section of a
-        report reads the same numbers."""
+        """The protocol's own report sections from its results and training curves; a protocol
+        that trains agents gets its results as score cells (``contextrl.analysis.scores.score_cells``:
+        a row per agent kind, variant, test set, context and seed, missing ones named), so every
+        section of a report reads the same numbers. The report adds the shared ones around them
+        (summary, environment, learning, training curves, per-context returns, missing results)."""
         raise NotImplementedError
 
     def runs_text(self) -> str:

@@ -19,7 +19,7 @@ from contextrl.analysis.scores import score_intervals, score_matrices
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, grid
-from contextrl.experiments.reports import curves_by_variant, figure, plane_points
+from contextrl.experiments.reports import figure, plane_points
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
@@ -96,7 +96,7 @@ class TrainTestSpec(CommonSpec):
         return _expand(self)
 
     def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results, curves)
+        return _sections(self, plan, results)
 
     def boxes(self) -> tuple[dict, dict]:
         """Canonical feature names → (low, high), checked against the feature bounds."""
@@ -193,7 +193,7 @@ def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
+def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame):
     train_box, _ = spec.boxes()
     (name_x, (x0, x1)), (name_y, (y0, y1)) = train_box.items()
     figures, rows = [], []
@@ -256,7 +256,7 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
         "combinatorial interpolation (inside the box, off the training support) or extrapolation in "
         "one or both features."
     ]
-    sections = [
+    return [
         Section(
             "Train/test modes",
             text,
@@ -264,18 +264,3 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves: pd.D
             figures,
         )
     ]
-    if not curves.empty:
-        steps, by_variant = curves_by_variant(curves)
-        sections.append(
-            Section(
-                "Training",
-                figures=[
-                    figure(
-                        "training-curves",
-                        plots.training_curves(steps, by_variant, title="Training", seed=spec.seed),
-                        "Mean training return (all modes) with a 95% bootstrap band",
-                    )
-                ],
-            )
-        )
-    return sections

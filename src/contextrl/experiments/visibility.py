@@ -12,7 +12,7 @@ from contextrl.analysis.intervals import two_sample_ci
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import design_words, interval_title, score_intervals, score_matrices
 from contextrl.experiments.plan import Plan, grid, train_and_test_sets
-from contextrl.experiments.reports import curves_by_variant, figure
+from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import CommonSpec, check_int, register_protocol
 
 
@@ -42,14 +42,14 @@ class VisibilitySpec(CommonSpec):
         return _expand(self)
 
     def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results, curves)
+        return _sections(self, plan, results)
 
 
 def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
     return train_and_test_sets(spec), grid(spec, "visibility", "train", "test")
 
 
-def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.DataFrame):
+def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame):
     scores = score_matrices(cells, cells["variant"])
     contexts = spec.test_contexts
     cis, rows = score_intervals(scores, **spec.design)
@@ -73,17 +73,7 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves: pd.
         )
         text.append(f"P({name} > hidden) = {poi} (95% CI over {design_words(scores, contexts)})")
     returns = {name: s.values for name, s in scores.items() if s.present}
-    figures = []
-    if not curves.empty:
-        steps, by_variant = curves_by_variant(curves)
-        figures.append(
-            figure(
-                "training-curves",
-                plots.training_curves(steps, by_variant, title="Training", seed=spec.seed),
-                "Mean training return with a 95% bootstrap band over seeds",
-            )
-        )
-    figures += [
+    figures = [
         figure("test-ecdf", plots.ecdf(returns, title="Test returns"), "eCDF of test returns"),
         figure("test-histogram", plots.histograms(returns, title="Test returns"), "Test returns"),
         figure(

@@ -10,7 +10,6 @@ actions with :func:`action_check`.
 
 from __future__ import annotations
 
-import dataclasses
 import operator
 import types
 from collections.abc import Callable, Hashable
@@ -23,9 +22,9 @@ import numpy as np
 from jax import lax
 from jax.sharding import SingleDeviceSharding
 
-from contextrl.context.features import ContextSpace
 from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import ContextSchedule
+from contextrl.context.selectors import FromSet
 from contextrl.core.contextual import ContextualEnv, choose_context
 from contextrl.core.env import Env
 from contextrl.core.spaces import Discrete
@@ -62,29 +61,12 @@ def context_table(schedule: ContextSchedule) -> np.ndarray:
     return np.asarray(schedule.space.to_array(schedule.contexts), np.float32)
 
 
-@dataclasses.dataclass(frozen=True)
-class FromTable:
-    """A context set given as a (contexts × features) array: one gather per choice, not one per
-    feature. The same choices as :class:`FromSet` over the same set (its selector, its indices)."""
-
-    space: ContextSpace
-    table: Any
-    selector: Any
-
-    @property
-    def uses_key(self) -> bool:
-        return self.selector.uses_key
-
-    def __call__(self, key, episode):
-        index = jnp.asarray(self.selector(key, episode, self.table.shape[0]), jnp.int32)
-        return self.space.from_array(jnp.asarray(self.table)[index]), index
-
-
 def schedule_provider(schedule: ContextSchedule, table) -> Any:
-    """The provider of ``schedule`` with its set given as ``table`` (traced or not)."""
+    """The provider of ``schedule`` with its set given as ``table`` (traced or not): the same
+    :class:`FromSet`, over the contexts the table holds."""
     if schedule.resamples:
         return schedule.provider
-    return FromTable(schedule.space, table, schedule.provider.selector)
+    return FromSet(schedule.space.from_array(table), schedule.provider.selector)
 
 
 def contextual_env(env: Env, schedule: ContextSchedule, table) -> ContextualEnv:

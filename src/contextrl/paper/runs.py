@@ -15,7 +15,7 @@ import jax
 from contextrl.analysis.report import Figure as ReportFigure
 from contextrl.analysis.report import Section, render
 from contextrl.experiments.planning import duration
-from contextrl.experiments.runner import resume, run_experiment
+from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import SpecError, parse_spec
 from contextrl.paper.catalogue import FIGURES, PaperFigure, spec_data
@@ -90,15 +90,14 @@ def run_figure(
     for part in figure.files():
         path = folder / part
         start = time.perf_counter()
+        options = {"executor": executor, "address": address, "progress": progress}
         if (path / "spec.yaml").exists():  # finish it as its own spec.yaml says
-            run, _ = resume(path, executor=executor, address=address, progress=progress)
+            run, _ = run_experiment(resume=path, **options)
         else:
             data = spec_data(figure, part, scale)
             if batch_size is not None:
                 data["batch_size"] = batch_size
-            run, _ = run_experiment(
-                data, out=path, executor=executor, address=address, progress=progress
-            )
+            run, _ = run_experiment(data, out=path, **options)
         spent = time.perf_counter() - start
         run.update_manifest(
             paper_wall_seconds=run.manifest().get("paper_wall_seconds", 0.0) + spent,
