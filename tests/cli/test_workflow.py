@@ -430,20 +430,20 @@ def test_eval_on_a_host_environment_run(tmp_path):
 
 def test_vary_merges_with_a_config_feature_by_feature():
     from contextrl.context.distributions import Uniform
-    from contextrl.experiments import SPECS
+    from contextrl.experiments import PROTOCOLS
 
     data = {"protocol": "visibility", "train": {"length": {"uniform": [0.3, 0.6]}, "tau": 0.03}}
-    notice = SPECS["visibility"].vary(data, ["length=uniform:0.2:0.4"])
+    notice = PROTOCOLS["visibility"].vary_spec(data, ["length=uniform:0.2:0.4"])
     assert data["train"] == {"length": Uniform(0.2, 0.4), "tau": 0.03}
     assert (
         notice
         == "--vary: train keeps ['tau'] from the config and replaces ['length']; now ['length', 'tau']"
     )
     data = {"protocol": "sensitivity", "features": ["g"]}
-    assert "keeps ['g']" in SPECS["sensitivity"].vary(data, ["l"])
+    assert "keeps ['g']" in PROTOCOLS["sensitivity"].vary_spec(data, ["l"])
     assert data["features"] == ["g", "l"]
     data = {"protocol": "sensitivity"}  # the default, every feature: --vary narrows it
-    assert SPECS["sensitivity"].vary(data, ["l"]) is None and data["features"] == ["l"]
+    assert PROTOCOLS["sensitivity"].vary_spec(data, ["l"]) is None and data["features"] == ["l"]
     data = {"protocol": "train_test", "train_box": {"length": [0.3, 0.6], "tau": [0.01, 0.02]}}
-    SPECS["train_test"].vary(data, ["tau=[0.015,0.025]"])
+    PROTOCOLS["train_test"].vary_spec(data, ["tau=[0.015,0.025]"])
     assert data["train_box"] == {"length": [0.3, 0.6], "tau": [0.015, 0.025]}

@@ -63,12 +63,12 @@ def test_each_round_trains_with_the_rate_pb2_set_unless_annealing_per_round_is_a
 SHARED_ROUND = """
 import dataclasses, json
 import jax, numpy as np
-from contextrl.experiments import parse_spec
+from contextrl.experiments import expand, parse_spec
 from contextrl.experiments.hpo import _round_trainer
 
 options = {"num_envs": 4, "num_steps": 32, "hidden_sizes": [8]}
 spec = parse_spec({"protocol": "hpo", "agent": "ppo", "steps_per_round": 256, "agent_options": options})
-env, train_set = spec.make_env(), spec.expand()[0]["train"].contexts
+env, train_set = spec.make_env(), expand(spec).sets["train"].contexts
 key = jax.random.key(0)
 
 def leaves(params):

@@ -39,12 +39,13 @@ LAYERS = [
     ("cli", ["contextrl.cli", "contextrl.__main__", "contextrl.demo"]),
 ]
 
-# Inside experiments, the order the modules build on each other (lowest first): specs, their expansion
-# into a plan of trials, running a chunk, run directories (starting Ray, and where Ray's output goes in
+# Inside experiments, the order the modules build on each other (lowest first): specs, the protocol
+# record, their expansion into a plan of trials, running a chunk, run directories (starting Ray, and where Ray's output goes in
 # a run), reports, the protocols, executors, the runner, the commands around it, and the package that
 # registers the protocols.
 EXPERIMENTS = [
     "spec",
+    "protocol",
     "plan",
     "trials",
     "runs",
@@ -120,7 +121,7 @@ def test_no_module_level_import_runs_up_a_layer(edges):
 
 
 def test_experiments_import_in_their_order(edges):
-    """spec → plan → trials → runs → … → executors → runner → commands: a module imports only
+    """spec → protocol → plan → trials → runs → … → executors → runner → commands: a module imports only
     those before it, so each file's header shows what it builds on."""
     backward = [
         f"{edge.importer} (line {edge.line}) imports {edge.imported}"

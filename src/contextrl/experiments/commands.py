@@ -20,12 +20,12 @@ from contextrl.agents import get_agent, registered_agents
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.executors import connect
 from contextrl.experiments.planning import describe_plan
+from contextrl.experiments.protocol import PROTOCOLS, protocol_of
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.reports import learning_verdict
 from contextrl.experiments.runner import carry_on, open_run, prepare, report
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import (
-    SPECS,
     SpecError,
     agent_options_error,
     load_yaml,
@@ -104,10 +104,10 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
         )
     if protocol in PRESETS:
         data = {k: v.copy() if isinstance(v, dict) else v for k, v in PRESETS[protocol].items()}
-    elif protocol in SPECS:
+    elif protocol in PROTOCOLS:
         data = {"protocol": protocol}
     else:
-        raise SpecError(f"unknown protocol {protocol!r}; choose one of {[*PRESETS, *SPECS]}")
+        raise SpecError(f"unknown protocol {protocol!r}; choose one of {[*PRESETS, *PROTOCOLS]}")
     if loaded:
         if loaded.get("protocol", data["protocol"]) != data["protocol"]:
             raise SpecError(
@@ -158,7 +158,7 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
     if options:
         data["agent_options"] = options
     if args.vary:
-        notice = SPECS[data["protocol"]].vary(data, args.vary)
+        notice = PROTOCOLS[data["protocol"]].vary_spec(data, args.vary)
         if notice and notices is not None:
             notices.append(notice)
     if args.test:
@@ -302,7 +302,7 @@ def run_command(args: argparse.Namespace) -> int:
         ray_started = connect(
             args.executor,
             args.address,
-            on_ray=spec.runs_on_ray,
+            on_ray=protocol_of(spec).runs_on_ray,
             join=not args.dry_run,
             verbose=args.verbose,
         )
@@ -357,10 +357,10 @@ def add_run(subparsers) -> None:
     parser = subparsers.add_parser(
         "run",
         help="run an experiment protocol and write a run directory with a report",
-        description="Protocols: " + ", ".join([*PRESETS, *SPECS]) + ". Options override "
+        description="Protocols: " + ", ".join([*PRESETS, *PROTOCOLS]) + ". Options override "
         "--config, which overrides the protocol's defaults.",
     )
-    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *SPECS]}")
+    parser.add_argument("protocol", nargs="?", help=f"one of {[*PRESETS, *PROTOCOLS]}")
     parser.add_argument("--config", help="a YAML spec (see examples/*.yaml)")
     parser.add_argument("--env", help="environment id (contextrl list)")
     parser.add_argument("--agent", help=f"a registered agent: {registered_agents()}")

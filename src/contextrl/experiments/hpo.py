@@ -33,6 +33,7 @@ from contextrl.analysis.report import Section
 from contextrl.analysis.scores import score_matrices
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.plan import TEST_KEY, train_and_test_sets
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
 from contextrl.experiments.reports import figure
@@ -44,7 +45,6 @@ from contextrl.experiments.spec import (
     check_int,
     check_number,
     parse_spec,
-    register_protocol,
     spec_to_dict,
 )
 from contextrl.experiments.trials import host_context_input, host_returns
@@ -65,7 +65,6 @@ TRACING_ERRORS = (
 )
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class HPOSpec(CommonSpec):
     """PB2 over ``search`` (hyper-parameter → [low, high]) with a population trained on ``train``."""
@@ -83,18 +82,10 @@ class HPOSpec(CommonSpec):
     # Each round trains with the rate PB2 set for it; true: PPO anneals it to 0 within every round.
     anneal_per_round: bool = False
 
-    runs_on_ray = True
-    training_section = False  # its sections draw each member's schedule and return instead
     unused_fields = {
         "seeds": "trains a population from one base seed (set population and seed)",
         "batch_size": "trains each member on its own Ray worker",
     }
-
-    def runs_text(self) -> str:
-        return (
-            f"a population of {self.population} members, {self.rounds} rounds of "
-            f"{self.steps_per_round} steps each (base seed {self.seed}); the best member is evaluated"
-        )
 
     def training_steps(self, trials) -> int:
         return self.population * self.rounds * self.steps_per_round
@@ -171,39 +162,6 @@ class HPOSpec(CommonSpec):
         except ConfigError as error:
             raise SpecError(f"search: {error}") from None
 
-    def expand(self) -> tuple[dict, list]:
-        return train_and_test_sets(self), []
-
-    def progress_row(self, run, plan, results, failures) -> dict:
-        return {
-            "population": self.population,
-            "rounds": self.rounds,
-            "finished": bool(run.finished()),
-            "seconds": round(sum(run.timings().values()), 1),
-        }
-
-    def execute(self, run, plan, *, executor, address, max_chunks, progress, verbose):
-        """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
-        if run.finished():
-            return Summary([], [0], [], [], 0.0)
-        start = time.perf_counter()
-        schedule, best = _tune(self, run.path, address, progress, verbose)
-        training, evaluations = _evaluate_best(self, plan, best)
-        hyper = {name: float(best["config"][name]) for name in self.bounds()}
-        best_options = {**self.agent_options, **hyper}
-        write_text(run.path / BEST_FILE, yaml.safe_dump(best_options, sort_keys=True))
-        write_parquet(run.path / "curves" / "chunk-0000.parquet", schedule)
-        write_parquet(run.path / "training" / "chunk-0000.parquet", training)
-        seconds = time.perf_counter() - start
-        run.record_timing(0, seconds)
-        write_parquet(run.result_path(0), evaluations)
-        if progress:
-            print(f"best configuration: {run.path / BEST_FILE}", flush=True)
-        return Summary([0], [], [], [], seconds)
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, results, curves)
-
 
 def _trainable(config: dict) -> None:
     """One population member on a Ray worker: train a round, report, checkpoint, repeat.
@@ -219,7 +177,7 @@ def _trainable(config: dict) -> None:
     use_compilation_cache()
     spec = parse_spec(config["spec"])
     env = spec.make_env()
-    train_set = spec.expand()[0]["train"].contexts
+    train_set = _expand(spec)[0]["train"].contexts
     agent = spec.agent_entry()
     hyper = {name: config[name] for name in spec.bounds()}
     agent_config = spec._config(hyper)
@@ -500,7 +458,7 @@ def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.Da
     return training, evaluations
 
 
-def _sections(spec: HPOSpec, cells: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
+def _sections(spec: HPOSpec, plan, cells: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
     bounds = spec.bounds()
     best = {name: float(cells[f"hp.{name}"].iloc[0]) for name in bounds}
     rows = [
@@ -549,3 +507,58 @@ def _sections(spec: HPOSpec, cells: pd.DataFrame, curves: pd.DataFrame) -> list[
     return [
         Section("Hyper-parameter optimisation (PB2)", text, [("Best configuration", rows)], figures)
     ]
+
+
+def _expand(spec: HPOSpec) -> tuple[dict, list]:
+    """The training and test sets; the trials are PB2's members, which Ray Tune runs (_execute)."""
+    return train_and_test_sets(spec), []
+
+
+def _execute(spec: HPOSpec, run, plan, *, executor, address, max_chunks, progress, verbose):
+    """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
+    if run.finished():
+        return Summary([], [0], [], [], 0.0)
+    start = time.perf_counter()
+    schedule, best = _tune(spec, run.path, address, progress, verbose)
+    training, evaluations = _evaluate_best(spec, plan, best)
+    hyper = {name: float(best["config"][name]) for name in spec.bounds()}
+    best_options = {**spec.agent_options, **hyper}
+    write_text(run.path / BEST_FILE, yaml.safe_dump(best_options, sort_keys=True))
+    write_parquet(run.path / "curves" / "chunk-0000.parquet", schedule)
+    write_parquet(run.path / "training" / "chunk-0000.parquet", training)
+    seconds = time.perf_counter() - start
+    run.record_timing(0, seconds)
+    write_parquet(run.result_path(0), evaluations)
+    if progress:
+        print(f"best configuration: {run.path / BEST_FILE}", flush=True)
+    return Summary([0], [], [], [], seconds)
+
+
+def _runs_text(spec: HPOSpec) -> str:
+    return (
+        f"a population of {spec.population} members, {spec.rounds} rounds of "
+        f"{spec.steps_per_round} steps each (base seed {spec.seed}); the best member is evaluated"
+    )
+
+
+def _progress_row(spec: HPOSpec, run, plan, results, failures) -> dict:
+    return {
+        "population": spec.population,
+        "rounds": spec.rounds,
+        "finished": bool(run.finished()),
+        "seconds": round(sum(run.timings().values()), 1),
+    }
+
+
+register_protocol(
+    Protocol(
+        HPOSpec,
+        _sections,
+        _expand,
+        execute=_execute,
+        runs_on_ray=True,
+        training_section=False,  # its sections draw each member's schedule and return instead
+        runs_text=_runs_text,
+        progress_row=_progress_row,
+    )
+)

@@ -17,17 +17,16 @@ from contextrl.analysis.scores import (
     interval_title,
 )
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import (
     MAX_COUNT,
     CommonSpec,
     SpecError,
     check_int,
-    register_protocol,
 )
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class OptimalityGapSpec(CommonSpec):
     """One general agent on N sampled contexts vs one specialist per context (paper §6.2)."""
@@ -48,12 +47,6 @@ class OptimalityGapSpec(CommonSpec):
                 f"and variant make {agents:,} agents to train; at most {MAX_COUNT:,}"
             )
         self.resolve_features("train", self.train)
-
-    def expand(self) -> tuple[dict, list]:
-        return _expand(self)
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results)
 
 
 def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
@@ -85,7 +78,7 @@ def _per_seed_text(stats: GapStatistics) -> str:
     )
 
 
-def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
+def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
     sections = []
     for variant, stats in gap_statistics(cells, spec.variants, **spec.design).items():
         g, s = stats.general, stats.specialists
@@ -158,3 +151,6 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame) -> list[
     if not sections:
         sections.append(Section("Optimality gap", ["Not enough finished trials for the gap."]))
     return sections
+
+
+register_protocol(Protocol(OptimalityGapSpec, _sections, _expand))

@@ -1,5 +1,5 @@
 """What every protocol expands into: named context sets and a grid of trials (seed × variant × train
-set), packed into chunks. Each protocol's own expansion lives in its module (``spec.expand()``).
+set), packed into chunks. Each protocol's own expansion lives in its module (``Protocol.expand``).
 
 Everything here is deterministic in the spec: contexts are drawn from keys derived from ``spec.seed``,
 so a resumed run rebuilds exactly the same plan. Trials that share a variant and set shapes are packed
@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contextrl.context.distributions import draw
+from contextrl.experiments.protocol import protocol_of
 from contextrl.experiments.spec import CommonSpec
 
 TRAIN_KEY, TEST_KEY = 1_000_001, 1_000_002
@@ -140,7 +141,7 @@ def expand(spec: CommonSpec) -> Plan:
     """The plan of a validated spec (empty for a protocol that trains no agents)."""
     if not spec.trains_agents:
         return Plan(spec, {}, [], [])
-    sets, trials = spec.expand()
+    sets, trials = protocol_of(spec).expand(spec)
     ids = [t.id for t in trials]
     assert len(set(ids)) == len(ids), "trial ids must be unique"
     return Plan(spec, sets, trials, _chunks(trials, sets, spec.batch_size))

@@ -1,5 +1,5 @@
 """Turn a run directory into a report: a summary, whether the agents learned, the protocol's own
-sections (``spec.sections``), failures and the spec; plus the helpers protocols build sections with."""
+sections (``Protocol.sections``), failures and the spec; plus the helpers protocols build sections with."""
 
 from __future__ import annotations
 
@@ -34,6 +34,7 @@ from contextrl.experiments.plan import (
     expand,
     trial_columns,
 )
+from contextrl.experiments.protocol import protocol_of
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import CommonSpec, spec_to_dict
 
@@ -302,7 +303,7 @@ def per_context_section(
                 + "; grey: the training range",
             )
         )
-    if len(features) == 2 and not spec.draws_heatmap:
+    if len(features) == 2 and not protocol_of(spec).draws_heatmap:
         x_name, y_name = features
         low, high = float(cells["return"].min()), float(cells["return"].max())
         frame = cells.assign(agent=agent_label(cells))
@@ -475,6 +476,7 @@ def learning_verdict(run: RunDir) -> list[str]:
 def build_report(run: RunDir) -> str:
     """Write ``report.html`` (and figures/*.png) for a run from what is on disk; return its path."""
     spec = run.spec()
+    protocol = protocol_of(spec)
     plan = expand(spec)
     results, curves, training = run.results(), run.curves(), run.training()
     manifest = run.manifest()
@@ -483,13 +485,13 @@ def build_report(run: RunDir) -> str:
     if spec.trains_agents:
         summary += (
             f" on {spec.env} with agent {spec.agent}; variants {list(spec.variants)}; "
-            f"{spec.runs_text()}."
+            f"{protocol.runs_text(spec)}."
         )
     sections = [
         Section(
             "Summary",
             [summary],
-            tables=[("Progress", [spec.progress_row(run, plan, results, failures)])],
+            tables=[("Progress", [protocol.progress_row(spec, run, plan, results, failures)])],
         )
     ]
     if spec.trains_agents:
@@ -500,15 +502,15 @@ def build_report(run: RunDir) -> str:
     if results.empty:
         sections.append(Section("Results", ["Nothing has finished yet."]))
     elif not spec.trains_agents:
-        sections += spec.sections(plan, results, curves)
+        sections += protocol.sections(spec, plan, results, curves)
     else:  # every section reads the same score cells
         cells = run_cells(run, plan, results)
-        sections += spec.sections(plan, cells, curves)
-        if spec.training_section and not curves.empty:
+        sections += protocol.sections(spec, plan, cells, curves)
+        if protocol.training_section and not curves.empty:
             sections.append(Section("Training", figures=[training_figure(spec, curves)]))
         table = per_context_table(cells)
         write_text(run.path / "results" / "per_context.csv", table.to_csv(index=False))
-        if spec.per_context_figures:
+        if protocol.per_context_figures:
             sections.append(per_context_section(spec, plan, cells, table))
         missing = missing_rows(score_matrices(cells))
         if missing:

@@ -12,6 +12,7 @@ from typing import Any
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.executors import EXECUTORS, run_chunks
 from contextrl.experiments.plan import expand
+from contextrl.experiments.protocol import protocol_of
 from contextrl.experiments.reports import build_report
 from contextrl.experiments.runs import RunDir, Summary
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
@@ -74,8 +75,9 @@ def carry_on(
         "max_chunks": max_chunks,
         "progress": progress,
     }
-    if spec.execute is not None:
-        summary = spec.execute(run, plan, **options, verbose=verbose)
+    execute = protocol_of(spec).execute
+    if execute is not None:
+        summary = execute(spec, run, plan, **options, verbose=verbose)
     else:
         summary = run_chunks(run, plan, **options, save_params=spec.agent_entry().trained)
     if report:

@@ -14,17 +14,16 @@ from contextrl.analysis.report import Section
 from contextrl.analysis.scores import DEFAULT_LABEL, magnitude_lines, natural_key
 from contextrl.context.features import ContextError
 from contextrl.experiments.plan import ContextSet, Plan, grid
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
     _as_tuple,
     check_number,
-    register_protocol,
 )
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class SensitivitySpec(CommonSpec):
     """Train on the default context; evaluate with each feature scaled by A × default (paper §6.1)."""
@@ -34,8 +33,8 @@ class SensitivitySpec(CommonSpec):
     features: tuple[str, ...] | str = "all"  # "all": every numeric feature with a non-zero default
     magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
 
-    per_context_figures = False  # its own view: return against the magnitude A per feature
     test_contexts = FIXED  # the sweep of magnitudes is the claim's own set
+    vary_field = None  # --vary names the features to scale (_vary)
 
     def validate(self) -> None:
         super().validate()
@@ -78,37 +77,6 @@ class SensitivitySpec(CommonSpec):
             )
         return kept, skipped
 
-    vary_field = None  # --vary names the features to scale
-
-    @classmethod
-    def vary(cls, data: dict, items: list[str]) -> str | None:
-        """``--vary g --vary l`` names the features to scale, added to those a config names; a
-        distribution (``l=uniform:…``, other protocols' syntax) is refused with the syntax to use."""
-        for item in items:
-            if "=" in item:
-                raise SpecError(
-                    f"--vary: sensitivity takes feature names (it scales each by the magnitudes), "
-                    f"got {item!r}; e.g. --vary {item.partition('=')[0].strip()} and "
-                    "--set 'magnitudes=[0.5, 1, 2]'"
-                )
-        existing = data.get("features")
-        if not isinstance(existing, (list, tuple)) or not existing:
-            data["features"] = list(items)  # replaces "all"
-            return None
-        data["features"] = list(dict.fromkeys([*existing, *items]))
-        kept = [name for name in existing if name not in items]
-        return (
-            f"--vary: features keeps {kept} from the config; now {data['features']}"
-            if kept
-            else None
-        )
-
-    def expand(self) -> tuple[dict, list]:
-        return _expand(self)
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results)
-
     def feature_names(self) -> tuple[str, ...]:
         space = self.space()
         if self.features == "all":
@@ -149,7 +117,7 @@ def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
     return sets, grid(spec, "default", "default", "scaled")
 
 
-def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame) -> list[Section]:
+def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
     by_feature = magnitude_lines(cells)
     rows = []
     for feature, lines in by_feature.items():
@@ -205,3 +173,35 @@ def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame) -> list[Se
     if skipped:
         text.append(f"Outside the feature bounds, so not evaluated: {', '.join(skipped)}.")
     return [Section("Sensitivity", text, [("Return per feature", rows)], figures)]
+
+
+def _vary(data: dict, items: list[str]) -> str | None:
+    """``--vary g --vary l`` names the features to scale, added to those a config names; a
+    distribution (``l=uniform:…``, other protocols' syntax) is refused with the syntax to use."""
+    for item in items:
+        if "=" in item:
+            raise SpecError(
+                f"--vary: sensitivity takes feature names (it scales each by the magnitudes), "
+                f"got {item!r}; e.g. --vary {item.partition('=')[0].strip()} and "
+                "--set 'magnitudes=[0.5, 1, 2]'"
+            )
+    existing = data.get("features")
+    if not isinstance(existing, (list, tuple)) or not existing:
+        data["features"] = list(items)  # replaces "all"
+        return None
+    data["features"] = list(dict.fromkeys([*existing, *items]))
+    kept = [name for name in existing if name not in items]
+    return (
+        f"--vary: features keeps {kept} from the config; now {data['features']}" if kept else None
+    )
+
+
+register_protocol(
+    Protocol(
+        SensitivitySpec,
+        _sections,
+        _expand,
+        vary=_vary,
+        per_context_figures=False,  # its own view: return against the magnitude A per feature
+    )
+)

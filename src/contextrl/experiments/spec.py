@@ -238,20 +238,11 @@ class CommonSpec:
     trains_agents: ClassVar[bool] = True  # False: the protocol has no agent, env or variants
     vary_field: ClassVar[str | None] = "train"  # the field `contextrl run --vary` sets
     env_defaults: ClassVar[tuple[str, ...]] = ()  # fields (None) filled from ENV_DEFAULTS
-    per_context_figures: ClassVar[bool] = True  # report: return against each varied feature
     # The test contexts' part in the intervals: drawn from the distribution a claim is about
     # (resampled with the seeds), or a fixed grid or sweep the claim is about (seeds only).
     test_contexts: ClassVar[str] = SAMPLED
-    draws_heatmap: ClassVar[bool] = False  # the protocol's own sections draw the 2-feature heat map
-    # The report draws the agents' training curves in a section of its own after the protocol's
-    # (False: the protocol's sections show training another way, as PB2's schedules).
-    training_section: ClassVar[bool] = True
-    runs_on_ray: ClassVar[bool] = False  # True: the protocol itself runs on Ray (--address applies)
     # Shared fields the protocol does not use, each with why: set off its default, one is refused.
     unused_fields: ClassVar[dict[str, str]] = {}
-    # How the protocol runs when not by training its plan's chunks of trials (the runner's default):
-    # ``execute(run, plan, *, executor, address, max_chunks, progress) -> Summary``.
-    execute: ClassVar[Callable[..., Any] | None] = None
 
     @property
     def design(self) -> dict[str, Any]:
@@ -347,43 +338,6 @@ class CommonSpec:
         kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
         return crl.make(self.env, **kwargs)
 
-    # ---- the protocol: what subclasses implement -------------------------------------------------
-    def expand(self) -> tuple[dict, list]:
-        """Named context sets and the trials (see :mod:`contextrl.experiments.plan`)."""
-        raise NotImplementedError(f"the {self.protocol} protocol does not train agents")
-
-    def sections(self, plan, results, curves) -> list:
-        """The protocol's own report sections from its results and training curves; a protocol
-        that trains agents gets its results as score cells (``contextrl.analysis.scores.score_cells``:
-        a row per agent kind, variant, test set, context and seed, missing ones named), so every
-        section of a report reads the same numbers. The report adds the shared ones around them
-        (summary, environment, learning, training curves, per-context returns, missing results)."""
-        raise NotImplementedError
-
-    def runs_text(self) -> str:
-        """What the report's summary says was trained."""
-        return f"{self.seeds} seeds (base seed {self.seed})"
-
-    def progress_row(self, run, plan, results, failures) -> dict:
-        """The report's progress table row."""
-        return {
-            "trials": len(plan.trials),
-            "trials finished": int(results["trial"].nunique()) if not results.empty else 0,
-            "chunks": len(plan.chunks),
-            "chunks finished": len(run.finished()),
-            "chunks failed": len(failures),
-            "seconds (sum over chunks)": round(sum(run.timings().values()), 1),
-        }
-
-    @classmethod
-    def vary(cls, data: dict, items: list[str]) -> str | None:
-        """Apply ``contextrl run --vary FEATURE=DIST`` items to the spec mapping ``data``, feature by
-        feature on top of what a config gave; returns a notice saying what was kept and replaced."""
-        if cls.vary_field is None:
-            raise SpecError(f"--vary: the {data['protocol']} protocol varies no features")
-        given = parse_assignments(items, "--vary", "FEATURE=DIST", parse_distribution)
-        return merge_features(data, cls.vary_field, given)
-
     def space(self):
         return self.make_env().context_space
 
@@ -414,20 +368,9 @@ def merge_features(data: dict, field: str, given: Mapping[str, Any]) -> str | No
     )
 
 
+# Each protocol's spec class by name (:func:`contextrl.experiments.protocol.register_protocol`
+# registers it with the protocol).
 SPECS: dict[str, type[CommonSpec]] = {}
-
-
-def register_protocol(cls: type[CommonSpec]) -> type[CommonSpec]:
-    """Class decorator: make a spec class the protocol named by its ``protocol`` field's default."""
-    name = cls.__dataclass_fields__["protocol"].default
-    if not isinstance(name, str) or not name:
-        raise TypeError(f"{cls.__name__} needs a default for its protocol field")
-    SPECS[name] = cls
-    return cls
-
-
-def protocol_names() -> list[str]:
-    return list(SPECS)
 
 
 def agent_options_error(value: Any) -> str:

@@ -26,6 +26,7 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import natural_key
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
 from contextrl.experiments.runs import Summary, write_parquet
 from contextrl.experiments.spec import (
@@ -33,7 +34,6 @@ from contextrl.experiments.spec import (
     SpecError,
     check_int,
     check_number,
-    register_protocol,
 )
 
 
@@ -268,7 +268,6 @@ def mirrored_cmdp(discount: float = 0.9) -> TabularCMDP:
     return TabularCMDP(p, r, start=0, discount=discount, name="mirrored 2-context cMDP")
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class TabularSpec(CommonSpec):
     """Optimality gaps of tabular cMDPs solved exactly: the paper's 3-state cMDP, the mirrored
@@ -303,20 +302,6 @@ class TabularSpec(CommonSpec):
         if not self.discount < 1.0:
             raise SpecError(f"discount: must be below 1, got {self.discount!r}")
 
-    def execute(self, run, plan, *, executor, address, max_chunks, progress, verbose):
-        """Solve every cMDP here (seconds; no executor needed) unless already done."""
-        if run.finished():
-            return Summary([], [0], [], [], 0.0)
-        start = time.perf_counter()
-        write_parquet(run.result_path(0), tabular_frame(self))
-        return Summary([0], [], [], [], time.perf_counter() - start)
-
-    def progress_row(self, run, plan, results, failures) -> dict:
-        return {"cMDPs": results["trial"].nunique() if not results.empty else 0}
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, results)
-
 
 def tabular_frame(spec: TabularSpec) -> pd.DataFrame:
     """Solutions of the paper's 3-state cMDP, the mirrored cMDP and the seeded random cMDPs."""
@@ -348,7 +333,7 @@ def tabular_frame(spec: TabularSpec) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _sections(spec: TabularSpec, results: pd.DataFrame) -> list[Section]:
+def _sections(spec: TabularSpec, plan, results: pd.DataFrame, curves) -> list[Section]:
     rows, gaps = [], {}
     groups = sorted(results.groupby("trial", sort=False), key=lambda item: natural_key(item[0]))
     for name, group in groups:
@@ -390,3 +375,19 @@ def _sections(spec: TabularSpec, results: pd.DataFrame) -> list[Section]:
         "Exact deterministic optimality gap per cMDP",
     )
     return [Section("Tabular cMDPs", text, [("Solutions", rows)], [bars])]
+
+
+def _execute(spec: TabularSpec, run, plan, *, executor, address, max_chunks, progress, verbose):
+    """Solve every cMDP here (seconds; no executor needed) unless already done."""
+    if run.finished():
+        return Summary([], [0], [], [], 0.0)
+    start = time.perf_counter()
+    write_parquet(run.result_path(0), tabular_frame(spec))
+    return Summary([0], [], [], [], time.perf_counter() - start)
+
+
+def _progress_row(spec: TabularSpec, run, plan, results, failures) -> dict:
+    return {"cMDPs": results["trial"].nunique() if not results.empty else 0}
+
+
+register_protocol(Protocol(TabularSpec, _sections, execute=_execute, progress_row=_progress_row))

@@ -19,6 +19,7 @@ from contextrl.analysis.scores import score_intervals, score_matrices
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, grid
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure, plane_points
 from contextrl.experiments.spec import (
     CommonSpec,
@@ -27,13 +28,11 @@ from contextrl.experiments.spec import (
     check_number,
     merge_features,
     parse_assignments,
-    register_protocol,
 )
 
 REGIONS = ("interpolation", "combinatorial", "extrapolation (one)", "extrapolation (both)")
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class TrainTestSpec(CommonSpec):
     """Kirk et al.'s modes over two features (paper §6.4).
@@ -54,7 +53,6 @@ class TrainTestSpec(CommonSpec):
     num_train_contexts: int = 64
     num_test_contexts: int = 144
 
-    draws_heatmap = True  # its sections draw a heat map per mode and variant
     test_contexts = FIXED  # a grid over the test box, each point labelled with its region
 
     def validate(self) -> None:
@@ -85,18 +83,7 @@ class TrainTestSpec(CommonSpec):
                     "extrapolation regions"
                 )
 
-    vary_field = "train_box"  # --vary length=[0.25,0.75] tau=[0.015,0.025]
-
-    @classmethod
-    def vary(cls, data: dict, items: list[str]) -> str | None:
-        boxes = parse_assignments(items, "--vary", "FEATURE=[LOW,HIGH]")
-        return merge_features(data, "train_box", boxes)
-
-    def expand(self) -> tuple[dict, list]:
-        return _expand(self)
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results)
+    vary_field = "train_box"  # --vary length=[0.25,0.75] tau=[0.015,0.025] (_vary)
 
     def boxes(self) -> tuple[dict, dict]:
         """Canonical feature names → (low, high), checked against the feature bounds."""
@@ -193,7 +180,7 @@ def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
     return sets, trials
 
 
-def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame):
+def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
     train_box, _ = spec.boxes()
     (name_x, (x0, x1)), (name_y, (y0, y1)) = train_box.items()
     figures, rows = [], []
@@ -264,3 +251,20 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame):
             figures,
         )
     ]
+
+
+def _vary(data: dict, items: list[str]) -> str | None:
+    """``--vary FEATURE=[LOW,HIGH]`` sets a feature's training range, on top of a config's."""
+    boxes = parse_assignments(items, "--vary", "FEATURE=[LOW,HIGH]")
+    return merge_features(data, "train_box", boxes)
+
+
+register_protocol(
+    Protocol(
+        TrainTestSpec,
+        _sections,
+        _expand,
+        vary=_vary,
+        draws_heatmap=True,  # its sections draw a heat map per mode and variant
+    )
+)

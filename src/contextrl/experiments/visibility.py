@@ -12,11 +12,11 @@ from contextrl.analysis.intervals import two_sample_ci
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import design_words, interval_title, score_intervals, score_matrices
 from contextrl.experiments.plan import Plan, grid, train_and_test_sets
+from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
-from contextrl.experiments.spec import CommonSpec, check_int, register_protocol
+from contextrl.experiments.spec import CommonSpec, check_int
 
 
-@register_protocol
 @dataclasses.dataclass(frozen=True)
 class VisibilitySpec(CommonSpec):
     """Hidden vs visible context: training curves and returns on held-out contexts (paper §6.3)."""
@@ -38,18 +38,12 @@ class VisibilitySpec(CommonSpec):
         if self.test is not None:
             self.resolve_features("test", self.test)
 
-    def expand(self) -> tuple[dict, list]:
-        return _expand(self)
-
-    def sections(self, plan, results, curves) -> list[Section]:
-        return _sections(self, plan, results)
-
 
 def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
     return train_and_test_sets(spec), grid(spec, "visibility", "train", "test")
 
 
-def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame):
+def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
     scores = score_matrices(cells, cells["variant"])
     contexts = spec.test_contexts
     cis, rows = score_intervals(scores, **spec.design)
@@ -83,3 +77,6 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame):
         ),
     ]
     return [Section("Context visibility", text, [("Test return", rows)], figures)]
+
+
+register_protocol(Protocol(VisibilitySpec, _sections, _expand))
