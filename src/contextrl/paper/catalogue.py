@@ -25,8 +25,6 @@ from contextrl.paper.checks import (
 )
 
 SPEC_FOLDER = Path(__file__).resolve().parent / "specs"
-
-
 SCALES = ("paper", "small", "tiny")
 
 
