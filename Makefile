@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test test-order run bench bench-all docs docs-gifs lint lock
+.PHONY: install system-deps test test-order run bench bench-all bench-learning docs docs-gifs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -49,6 +49,12 @@ run: install
 # The environment speed tables; also written as Markdown where the docs' benchmarks page includes them.
 bench: install
 	$(PY) benchmarks/bench_envs.py --markdown benchmarks/results/envs.md
+
+# The agents beside Stable-Baselines3 and PureJaxRL at equal budgets (benchmarks/learning.py): final
+# returns with intervals over seeds, curves, wall time. PUREJAXRL: a checkout of luchris429/purejaxrl.
+bench-learning: install
+	@test -f "$(PUREJAXRL)/purejaxrl/ppo.py" || { echo "give PUREJAXRL=<a checkout of luchris429/purejaxrl>"; exit 2; }
+	$(PY) benchmarks/learning.py --purejaxrl $(PUREJAXRL)
 
 # Every speed table of docs/benchmarks.md, one script after another, each printing its table (with the
 # load average and peers' versions) into benchmarks/results/latest/<script>.txt. Hours on 2 cores: the
