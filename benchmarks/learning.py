@@ -30,6 +30,7 @@ import json
 import os
 import pathlib
 import shlex
+import string
 import subprocess
 import sys
 
@@ -86,29 +87,38 @@ PPO_SETTINGS = {
     "anneal_lr": True,
 }
 
-OURS_PPO = """
+# contextrl's run: the agent's seeds in one compiled call, then each seed's final return. $env is the
+# environment, $agent the module, $config the lines that build ``config`` from steps and settings.
+OURS = string.Template("""
 import json, sys, time
 import jax, numpy as np
 from contextrl.xla_flags import xla_cpu_workaround
 xla_cpu_workaround()
 import contextrl as crl
-from contextrl.agents import evaluate, ppo
+from contextrl.agents import evaluate, $agent
 steps, seeds, settings = int(sys.argv[1]), int(sys.argv[2]), json.loads(sys.argv[3])
-env = crl.make("CartPole")
+env = crl.make("$env")
 context = env.default_context()
-config = ppo.PPOConfig(total_timesteps=steps, hidden_sizes=(64, 64), activation="tanh", **settings)
+$config
 start = time.perf_counter()
-train = jax.jit(jax.vmap(ppo.make_train(config, env, context)))
+train = jax.jit(jax.vmap($agent.make_train(config, env, context)))
 result = jax.block_until_ready(train(jax.random.split(jax.random.key(0), seeds)))
 wall = time.perf_counter() - start
-policy = ppo.make_policy(config, env, context)
+policy = $agent.make_policy(config, env, context)
 final = jax.jit(jax.vmap(lambda params, key: evaluate(policy, params, env, context, 10, key)))(
     result.params, jax.random.split(jax.random.key(1), seeds))
 curves = np.asarray(result.metrics["episode_return"], float)
 print(json.dumps({"final": np.asarray(final).reshape(seeds).tolist(), "wall_s": wall,
                   "steps": np.asarray(result.metrics["step"])[0].tolist(),
                   "curves": np.where(np.isfinite(curves), curves, None).tolist()}))
-"""
+""")
+
+OURS_PPO = OURS.substitute(
+    env="CartPole",
+    agent="ppo",
+    config="config = ppo.PPOConfig(total_timesteps=steps, hidden_sizes=(64, 64), activation='tanh', "
+    "**settings)",
+)
 
 PUREJAXRL_PPO = """
 import json, sys, time
@@ -160,7 +170,25 @@ print(json.dumps({"final": np.asarray(final).reshape(seeds).tolist(), "wall_s": 
                   "curves": np.where(np.isfinite(curves), curves, None).tolist()}))
 """
 
-SB3_PPO = """
+# Stable-Baselines3's final return: the deterministic policy's mean over 10 episodes.
+SB3_GREEDY = """def greedy_return(model, env_id, seed):
+    env = gymnasium.make(env_id)
+    discrete = not env.action_space.shape
+    returns = []
+    for episode in range(10):
+        obs, _ = env.reset(seed=seed * 100 + episode)
+        total, done = 0.0, False
+        while not done:
+            action, _ = model.predict(obs, deterministic=True)
+            obs, reward, terminated, truncated, _ = env.step(int(action) if discrete else action)
+            total += reward
+            done = terminated or truncated
+        returns.append(total)
+    return float(np.mean(returns))
+"""
+
+SB3_PPO = string.Template("""
+ENV_ID = "contextrl/CartPole-v0"
 import json, sys, time
 import gymnasium, numpy as np, torch
 from stable_baselines3 import PPO
@@ -181,20 +209,7 @@ class Episodes(BaseCallback):
         self.new += int(np.sum(self.locals["dones"]))
         return True
 
-def greedy_return(model, seed):
-    env = gymnasium.make("contextrl/CartPole-v0")
-    returns = []
-    for episode in range(10):
-        obs, _ = env.reset(seed=seed * 100 + episode)
-        total, done = 0.0, False
-        while not done:
-            action, _ = model.predict(obs, deterministic=True)
-            obs, reward, terminated, truncated, _ = env.step(int(action))
-            total += reward
-            done = terminated or truncated
-        returns.append(total)
-    return float(np.mean(returns))
-
+$greedy
 batch = settings["num_envs"] * settings["num_steps"]
 start_lr = settings["learning_rate"]
 schedule = (lambda remaining: remaining * start_lr) if settings["anneal_lr"] else start_lr
@@ -213,11 +228,76 @@ for seed in range(seeds):
     log.rows = []
     model.learn(total_timesteps=steps, callback=log)
     wall += time.perf_counter() - start
-    final.append(greedy_return(model, seed))
+    final.append(greedy_return(model, ENV_ID, seed))
     curves.append([value for _, value in log.rows])
     steps_axis = [step for step, _ in log.rows]
 print(json.dumps({"final": final, "wall_s": wall, "steps": steps_axis, "curves": curves}))
-"""
+""").substitute(greedy=SB3_GREEDY)
+
+
+# Stable-Baselines3's SAC defaults where both libraries have the setting (one learning rate for actor,
+# critics and temperature; an actor update every gradient step; the entropy target -dim(A)), with
+# 1,000 warm-up steps and a 100,000-transition buffer.
+SAC_SETTINGS = {
+    "learning_rate": 3e-4,
+    "buffer_size": 100_000,
+    "learning_starts": 1_000,
+    "batch_size": 256,
+    "tau": 0.005,
+    "gamma": 0.99,
+    "log_every": 1_000,
+    "torch_threads": 2,  # SB3's torch on both cores, as XLA runs
+}
+
+OURS_SAC = OURS.substitute(
+    env="Pendulum",
+    agent="sac",
+    config="""rate = settings.pop("learning_rate")
+settings.pop("torch_threads")
+config = sac.SACConfig(total_timesteps=steps, num_envs=1, hidden_sizes=(256, 256), activation="relu",
+                       policy_lr=rate, q_lr=rate, policy_frequency=1, autotune=True, **settings)""",
+)
+
+SB3_SAC = string.Template("""
+ENV_ID = "contextrl/Pendulum-v0"
+import json, sys, time
+import gymnasium, numpy as np, torch
+from stable_baselines3 import SAC
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.monitor import Monitor
+import contextrl  # registers contextrl/Pendulum-v0
+steps, seeds, settings = int(sys.argv[1]), int(sys.argv[2]), json.loads(sys.argv[3])
+torch.set_num_threads(int(settings.pop("torch_threads")))
+every = settings.pop("log_every")
+
+class Episodes(BaseCallback):
+    # each training episode's return and the step it ended at
+    def _on_step(self):
+        for info in self.locals["infos"]:
+            if "episode" in info:
+                self.ended.append((self.num_timesteps, info["episode"]["r"]))
+        return True
+
+$greedy
+edges = list(range(every, steps + 1, every))
+final, curves, wall = [], [], 0.0
+for seed in range(seeds):
+    start = time.perf_counter()
+    env = Monitor(gymnasium.make("contextrl/Pendulum-v0"))
+    model = SAC("MlpPolicy", env, policy_kwargs={"net_arch": [256, 256]}, seed=seed, device="cpu",
+                **settings)
+    log = Episodes()
+    log.ended = []
+    model.learn(total_timesteps=steps, callback=log)
+    wall += time.perf_counter() - start
+    final.append(greedy_return(model, ENV_ID, seed))
+    curve = []
+    for edge in edges:  # the mean return of the episodes that ended in each logging period
+        inside = [r for step, r in log.ended if edge - every < step <= edge]
+        curve.append(float(np.mean(inside)) if inside else None)
+    curves.append(curve)
+print(json.dumps({"final": final, "wall_s": wall, "steps": edges, "curves": curves}))
+""").substitute(greedy=SB3_GREEDY)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -253,7 +333,17 @@ ROWS = {
         "PureJaxRL's ppo.py settings in every library: 4 copies × 128 steps, 4 epochs of 4 "
         "minibatches, learning rate 2.5e-4 annealed to 0, entropy 0.01, 64×64 tanh networks; "
         "gymnax's CartPole-v1 for PureJaxRL, contextrl/CartPole-v0 at the default context (the "
-        "same dynamics, 500 steps) for the others",
+        "same dynamics, 500 steps) for the others; SB3's torch on one thread",
+    ),
+    "sac_pendulum": Row(
+        "SAC, Pendulum",
+        10_000,
+        SAC_SETTINGS,
+        (Library("contextrl", OURS_SAC), Library("Stable-Baselines3", SB3_SAC)),
+        "Stable-Baselines3's SAC settings in both: one learning rate 3e-4 for actor, critics and "
+        "the temperature (tuned towards entropy -1), an actor update every step, batch 256, "
+        "τ 0.005, γ 0.99, 256×256 ReLU networks, one copy; 1,000 warm-up steps, a 100,000-step "
+        "buffer; contextrl/Pendulum-v0 at the default context (200-step episodes); torch on both cores",
     ),
 }
 
