@@ -6,9 +6,9 @@ each (protocol, agent) pair runs once, on one kind of environment, chosen so tha
 every agent runs on both kinds (here or in the tests named below) while few runs compile a JAX
 training loop (the costly part; a host run compiles only the agent's update). Pairs that other tests
 already run through the command line are not repeated: sensitivity × sac on Pendulum and visibility ×
-sac on DmcWalker (test_experiments_registry), optimality_gap × a PPO agent
-(test_experiments_registry), visibility × random (test_experiments_agents), hpo × ppo
-(test_experiments_hpo, which also checks that host training continues a member's parameters). hpo × c51
+sac on DmcWalker (test_registry.py), optimality_gap × a PPO agent (test_registry.py), visibility ×
+random (test_agents.py), hpo × ppo (test_hpo.py, which also checks that host training continues a
+member's parameters). hpo × c51
 is not run: C51 is DQN's distributional head (agents/dqn.py), and a PB2 run costs a Ray session; PB2
 runs DQN here on JAX and SAC on a host environment.
 
