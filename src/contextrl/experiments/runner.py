@@ -28,6 +28,7 @@ def prepare(spec: CommonSpec | Mapping[str, Any]) -> CommonSpec:
 
 
 def check_executor(executor: str) -> None:
+    """Refuse an executor that does not exist, before anything is created."""
     if executor not in EXECUTORS:
         raise SpecError(f"executor: unknown executor {executor!r}; choose one of {list(EXECUTORS)}")
 
@@ -42,7 +43,7 @@ def open_run(
     """The run to carry on and its validated spec: a new run directory for ``spec`` (``out``, else a
     fresh folder under ``root``), or, with ``resume``, the run directory there with its own spec."""
     if (spec is None) == (resume is None):
-        raise TypeError("open_run: give a spec for a new run or resume=RUN_DIRECTORY, not both")
+        raise TypeError("open_run: give either a spec (a new run) or resume=RUN_DIRECTORY")
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     use_compilation_cache()
     if resume is not None:
