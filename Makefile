@@ -50,11 +50,13 @@ run: install
 bench: install
 	$(PY) benchmarks/bench_envs.py --markdown benchmarks/results/envs.md
 
-# The agents beside Stable-Baselines3 and PureJaxRL at equal budgets (benchmarks/learning.py): final
-# returns with intervals over seeds, curves, wall time. PUREJAXRL: a checkout of luchris429/purejaxrl.
+# The agents beside Stable-Baselines3, PureJaxRL and CleanRL at equal budgets (benchmarks/learning.py):
+# final returns with intervals over seeds, curves, wall time. PUREJAXRL: a checkout of
+# luchris429/purejaxrl; CLEANRL: a checkout of vwxyzjn/cleanrl.
 bench-learning: install
 	@test -f "$(PUREJAXRL)/purejaxrl/ppo.py" || { echo "give PUREJAXRL=<a checkout of luchris429/purejaxrl>"; exit 2; }
-	$(PY) benchmarks/learning.py --purejaxrl $(PUREJAXRL)
+	@test -f "$(CLEANRL)/cleanrl/dqn_jax.py" || { echo "give CLEANRL=<a checkout of vwxyzjn/cleanrl>"; exit 2; }
+	$(PY) benchmarks/learning.py --purejaxrl $(PUREJAXRL) --cleanrl $(CLEANRL)
 
 # Every speed table of docs/benchmarks.md, one script after another, each printing its table (with the
 # load average and peers' versions) into benchmarks/results/latest/<script>.txt. Hours on 2 cores: the
