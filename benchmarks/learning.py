@@ -4,11 +4,12 @@
 
 Each row trains the same environment for the same number of environment steps with the same settings
 (stated per row, with where they differ) in every library, ``--seeds`` seeds each, every library in a
-process of its own: the project's agents and Stable-Baselines3 in the project's environment (SB3 is the
-``sb3`` extra, and it trains on the project's gymnasium ids); PureJaxRL and CleanRL in virtual
+process of its own: the project's agents, Stable-Baselines3 and brax's own PPO trainer in the project's
+environment (SB3 is the ``sb3`` extra and trains on the project's gymnasium ids; brax is the ``brax``
+extra); PureJaxRL and CleanRL in virtual
 environments of their own (``.venv-purejaxrl``, ``.venv-cleanrl``), created here on first use. Their
-code is not on PyPI: ``--purejaxrl`` is a checkout of luchris429/purejaxrl, whose ``purejaxrl/ppo.py``
-is imported unchanged and its ``make_train`` called; ``--cleanrl`` a checkout of vwxyzjn/cleanrl, whose
+code is not on PyPI: ``--purejaxrl`` is a checkout of luchris429/purejaxrl, whose ``ppo.py`` and
+``ppo_continuous_action.py`` are imported unchanged and their ``make_train`` called; ``--cleanrl`` a checkout of vwxyzjn/cleanrl, whose
 scripts run unchanged, once per seed, as their command lines would. The final return is the
 deterministic policy's mean over 10 episodes at the default context, one value per seed; the table
 gives their IQM with a 95% interval over seeds (``contextrl.analysis``), the wall time of the whole run
@@ -21,7 +22,8 @@ Each row keeps its runs in ``benchmarks/results/learning_<row>.json`` (per libra
 return and curve, the date, the load average, the command), and writes its table beside it
 (``learning_<row>.md``) and its curves to ``docs/images/learning_<row>.png``; the agents page shows
 them. ``--libraries`` runs some of a row's libraries and keeps the others' runs (``--libraries
-contextrl PureJaxRL --seeds 16 --suffix 16_seeds``: the JAX ones at more seeds, in files of their own).
+contextrl PureJaxRL --seeds 16 --suffix 16_seeds``: the JAX ones at more seeds, in files of their own);
+``--redraw`` rewrites the tables and curves from the kept runs without running anything.
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ from _peers import ROOT  # noqa: E402
 # every pool thread idle (PureJaxRL's five vmapped seeds did, here).
 XLA_FLAGS = "--xla_cpu_enable_concurrency_optimized_scheduler=false"
 
-# PureJaxRL's ppo.py defaults (its __main__ config): the settings every PPO row shares.
+# PureJaxRL's ppo.py defaults (its __main__ config): the settings of PPO on CartPole.
 PPO_SETTINGS = {
     "learning_rate": 2.5e-4,
     "num_envs": 4,
@@ -753,7 +755,7 @@ ROWS = {
         100_000,
         C51_SETTINGS,
         (Library("contextrl", OURS_C51), Library("CleanRL", CLEANRL_C51, CLEANRL)),
-        "the paper's C51 setting for CartPole (appendix table) in contextrl: 5-step returns, "
+        "The paper's C51 setting for CartPole (appendix table) in contextrl: 5-step returns, "
         "Boltzmann exploration at temperature 0.1, soft target updates τ = 0.001, 256×256 network, "
         "learning rate 1e-3, batch 128, 5,000 warm-up steps, a 100,000-step buffer, 51 atoms on "
         "[0, 110]; CleanRL's c51_jax.py with the same learning rate, batch, warm-up, buffer and "
@@ -802,7 +804,7 @@ ROWS = {
             Library("Stable-Baselines3", SB3_DMC_SAC),
             Library("CleanRL", CLEANRL_DMC_SAC, CLEANRL, cleanrl_sac_settings),
         ),
-        "the SAC Pendulum row's settings with 5,000 warm-up steps; dm_control's walker-walk "
+        "The SAC Pendulum row's settings with 5,000 warm-up steps; dm_control's walker-walk "
         "(1,000-step episodes): contextrl/DmcWalker-v0 at the default context for contextrl "
         "(through its host loop) and SB3, shimmy's dm_control/walker-walk-v0 with its observation "
         "flattened for CleanRL; torch on both cores",
