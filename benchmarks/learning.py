@@ -206,16 +206,14 @@ def episode(params, key):
     return total""",
 )
 
-# brax's own PPO trainer (brax.training.agents.ppo.train) on the same task and pipeline, in the
-# project's environment (brax is its dependency), one seed after another: its batches in its units
+# brax's own PPO trainer (brax.training.agents.ppo.train) on the same task and pipeline, in
+# .venv-brax, one seed after another: its batches in its units
 # (batch_size × num_minibatches unrolls of unroll_length steps = the copies × steps of an update),
 # 256×256 tanh networks for policy and value; its curve is its evaluator's mean return over 10
 # episodes at each of 10 evaluations (included in the wall time, a few seconds).
 BRAX_TRAINER_PPO = """
 import functools, json, sys, time
 import jax, jax.numpy as jnp, numpy as np
-from contextrl.xla_flags import xla_cpu_workaround
-xla_cpu_workaround()
 from brax import envs
 from brax.envs.wrappers.training import EpisodeWrapper
 from brax.training.agents.ppo import networks, train as ppo
@@ -629,7 +627,7 @@ class Peer:
     venv: str
     groups: tuple[tuple[str, ...], ...]
     probe: str
-    marker: str  # a file every checkout of it has
+    marker: str | None  # a file every checkout of its code has (None: its code is on PyPI)
     pinned: bool
 
     def python(self) -> pathlib.Path:
@@ -691,7 +689,17 @@ CLEANRL = Peer(
     "cleanrl/dqn_jax.py",
     pinned=False,
 )
-PEERS = (PUREJAXRL, CLEANRL)
+# brax's own PPO trainer: brax 0.14.2 (the project's pin) calls jax.device_put_replicated, which the
+# project's JAX no longer has, so it runs on the newest JAX that still does.
+BRAX = Peer(
+    "brax",
+    ".venv-brax",
+    (("brax==0.14.2", "mujoco-mjx==3.17.0", "mujoco==3.17.0", "jax==0.8.2", "jaxlib==0.8.2"),),
+    "from brax.training.agents.ppo import train",
+    None,
+    pinned=False,
+)
+PEERS = (PUREJAXRL, CLEANRL)  # the peers whose code comes from a checkout
 
 
 @dataclasses.dataclass(frozen=True)
@@ -784,7 +792,7 @@ ROWS = {
         (
             Library("contextrl", OURS_BRAX_PPO),
             Library("PureJaxRL", PUREJAXRL_BRAX_PPO, PUREJAXRL),
-            Library("brax", BRAX_TRAINER_PPO),
+            Library("brax", BRAX_TRAINER_PPO, BRAX),
         ),
         "PureJaxRL's ppo_continuous_action.py settings with 64 copies × 32 steps per update: "
         "4 epochs of 8 minibatches, learning rate 3e-4 (constant), no entropy bonus, clip 0.2, "
@@ -820,6 +828,7 @@ def run_library(library: Library, row: Row, seeds: int, checkouts: dict) -> dict
     python = pathlib.Path(sys.executable)
     if library.peer:
         python = library.peer.python()
+    if library.peer and library.peer.marker:
         arguments.insert(0, str(checkouts[library.peer.name]))
     with tempfile.TemporaryDirectory() as scratch:
         result = subprocess.run(
@@ -930,7 +939,7 @@ def main() -> None:
         for name in args.only
     }
     checkouts = {peer.name: getattr(args, peer.name.lower()) for peer in PEERS}
-    peers = {lib.peer for libs in chosen.values() for lib in libs if lib.peer}
+    peers = {lib.peer for libs in chosen.values() for lib in libs if lib.peer and lib.peer.marker}
     for peer in [] if args.redraw else peers:
         checkout = checkouts[peer.name]
         if not (checkout and (checkout / peer.marker).is_file()):
