@@ -4,13 +4,13 @@
 
 Each row trains the same environment for the same number of environment steps with the same settings
 (stated per row, with where they differ) in every library, ``--seeds`` seeds each, every library in a
-process of its own: the project's agents, Stable-Baselines3 and brax's own PPO trainer in the project's
-environment (SB3 is the ``sb3`` extra and trains on the project's gymnasium ids; brax is the ``brax``
-extra); PureJaxRL and CleanRL in virtual
-environments of their own (``.venv-purejaxrl``, ``.venv-cleanrl``), created here on first use. Their
-code is not on PyPI: ``--purejaxrl`` is a checkout of luchris429/purejaxrl, whose ``ppo.py`` and
-``ppo_continuous_action.py`` are imported unchanged and their ``make_train`` called; ``--cleanrl`` a checkout of vwxyzjn/cleanrl, whose
-scripts run unchanged, once per seed, as their command lines would. The final return is the
+process of its own: the project's agents and Stable-Baselines3 in the project's environment (SB3 is the
+``sb3`` extra and trains on the project's gymnasium ids); PureJaxRL, CleanRL and brax's own PPO trainer
+in virtual environments of their own (``.venv-purejaxrl``, ``.venv-cleanrl``, ``.venv-brax``), created
+here on first use. PureJaxRL's and CleanRL's code is not on PyPI: ``--purejaxrl`` is a checkout of
+luchris429/purejaxrl, whose ``ppo.py`` and ``ppo_continuous_action.py`` are imported unchanged and
+their ``make_train`` called; ``--cleanrl`` a checkout of vwxyzjn/cleanrl, whose scripts run unchanged,
+once per seed, as their command lines would. The final return is the
 deterministic policy's mean over 10 episodes at the default context, one value per seed; the table
 gives their IQM with a 95% interval over seeds (``contextrl.analysis``), the wall time of the whole run
 with compilation, and steps per second (seeds × steps / wall time; the JAX agents of contextrl and
