@@ -101,7 +101,7 @@ OURS_PPO = OURS.substitute(
 )
 
 # PureJaxRL's own module $module, imported unchanged: its make_train with the row's settings in its
-# config names, the seeds in one vmapped call; $episode defines ``episode(params, key)``, the
+# config names, the seeds in one vmapped call after $setup; $episode defines ``episode(params, key)``, the
 # deterministic policy's return until the first end (PureJaxRL's environments reset inside step;
 # later rewards are ignored).
 PUREJAXRL_RUN = string.Template("""
@@ -110,6 +110,7 @@ import jax, jax.numpy as jnp, numpy as np
 folder, steps, seeds, settings = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), json.loads(sys.argv[4])
 sys.path.insert(0, folder + "/purejaxrl")
 import $module as purejaxrl
+$setup
 names = {"learning_rate": "LR", "num_envs": "NUM_ENVS", "num_steps": "NUM_STEPS",
          "update_epochs": "UPDATE_EPOCHS", "num_minibatches": "NUM_MINIBATCHES", "gamma": "GAMMA",
          "gae_lambda": "GAE_LAMBDA", "clip_eps": "CLIP_EPS", "ent_coef": "ENT_COEF",
@@ -140,6 +141,7 @@ print(json.dumps({"final": np.asarray(final).reshape(seeds).tolist(), "wall_s": 
 
 PUREJAXRL_PPO = PUREJAXRL_RUN.substitute(
     module="ppo",
+    setup="",
     config='"ENV_NAME": "CartPole-v1"',
     episode="""import gymnax
 env, env_params = gymnax.make("CartPole-v1")
@@ -177,11 +179,11 @@ BRAX_PPO_SETTINGS = {
     "anneal_lr": False,
 }
 
+# contextrl's PPO with PureJaxRL's continuous network (256×256, tanh) and the row's settings.
+PPO_256 = "config = ppo.PPOConfig(total_timesteps=steps, hidden_sizes=(256, 256), activation='tanh', **settings)"
+
 OURS_BRAX_PPO = OURS.substitute(
-    env='"BraxInvertedDoublePendulum", backend="positional"',
-    agent="ppo",
-    config="config = ppo.PPOConfig(total_timesteps=steps, hidden_sizes=(256, 256), activation='tanh', "
-    "**settings)",
+    env='"BraxInvertedDoublePendulum", backend="positional"', agent="ppo", config=PPO_256
 )
 
 # PureJaxRL's ppo_continuous_action.py on brax's inverted_double_pendulum (its BraxGymnaxWrapper:
@@ -189,6 +191,7 @@ OURS_BRAX_PPO = OURS.substitute(
 # action bounds as its ClipAction does.
 PUREJAXRL_BRAX_PPO = PUREJAXRL_RUN.substitute(
     module="ppo_continuous_action",
+    setup="",
     config='"ENV_NAME": "inverted_double_pendulum", "NORMALIZE_ENV": False',
     episode="""from wrappers import BraxGymnaxWrapper
 env = BraxGymnaxWrapper("inverted_double_pendulum")
@@ -285,14 +288,16 @@ def binned(ended, every, steps):
 """
 
 
-SB3_PPO = string.Template("""
-ENV_ID = "contextrl/CartPole-v0"
+# Stable-Baselines3's PPO on $env_id with $hidden tanh networks, one seed after another; the mean
+# return of the training episodes that ended in each rollout makes the curve.
+SB3_PPO_RUN = string.Template("""
+ENV_ID = "$env_id"
 import json, sys, time
 import gymnasium, numpy as np, torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
-import contextrl  # registers contextrl/CartPole-v0
+import contextrl  # registers the contextrl ids
 steps, seeds, settings = int(sys.argv[1]), int(sys.argv[2]), json.loads(sys.argv[3])
 torch.set_num_threads(1)
 
@@ -314,13 +319,13 @@ schedule = (lambda remaining: remaining * start_lr) if settings["anneal_lr"] els
 final, curves, wall = [], [], 0.0
 for seed in range(seeds):
     start = time.perf_counter()
-    envs = make_vec_env("contextrl/CartPole-v0", n_envs=settings["num_envs"], seed=seed)
+    envs = make_vec_env(ENV_ID, n_envs=settings["num_envs"], seed=seed)
     model = PPO("MlpPolicy", envs, n_steps=settings["num_steps"],
                 batch_size=batch // settings["num_minibatches"], n_epochs=settings["update_epochs"],
                 learning_rate=schedule, gamma=settings["gamma"], gae_lambda=settings["gae_lambda"],
                 clip_range=settings["clip_eps"], ent_coef=settings["ent_coef"],
                 vf_coef=settings["vf_coef"], max_grad_norm=settings["max_grad_norm"],
-                policy_kwargs={"net_arch": [64, 64], "activation_fn": torch.nn.Tanh},
+                policy_kwargs={"net_arch": $hidden, "activation_fn": torch.nn.Tanh},
                 seed=seed, device="cpu")
     log = Episodes()
     log.rows = []
@@ -330,7 +335,67 @@ for seed in range(seeds):
     curves.append([value for _, value in log.rows])
     steps_axis = [step for step, _ in log.rows]
 print(json.dumps({"final": final, "wall_s": wall, "steps": steps_axis, "curves": curves}))
-""").substitute(greedy=GREEDY)
+""")
+
+SB3_PPO = SB3_PPO_RUN.substitute(env_id="contextrl/CartPole-v0", hidden="[64, 64]", greedy=GREEDY)
+
+# rl-baselines3-zoo's PPO settings for Pendulum-v1 (its ppo.yml) without its state-dependent
+# exploration (an SB3-only feature) and with rollouts of 256 steps per copy instead of 1,024 (four
+# times the updates): 4 copies, 10 epochs of minibatches of 64, learning rate 1e-3 (constant), γ 0.9,
+# no entropy bonus.
+PENDULUM_PPO_SETTINGS = {
+    **PPO_SETTINGS,
+    "learning_rate": 1e-3,
+    "num_steps": 256,
+    "update_epochs": 10,
+    "num_minibatches": 16,
+    "gamma": 0.9,
+    "ent_coef": 0.0,
+    "anneal_lr": False,
+}
+
+OURS_PENDULUM_PPO = OURS.substitute(env='"Pendulum"', agent="ppo", config=PPO_256)
+
+# PureJaxRL's ppo_continuous_action.py builds its environment with BraxGymnaxWrapper(ENV_NAME); here
+# that name is bound, before make_train runs, to gymnax's Pendulum-v1 in the same shape. The
+# script's ClipAction clips actions to [-1, 1], so this stand-in scales them to the ±2 torque.
+PUREJAXRL_PENDULUM_PPO = PUREJAXRL_RUN.substitute(
+    module="ppo_continuous_action",
+    setup="""import gymnax
+from gymnax.environments import spaces
+
+class GymnaxPendulum:
+    def __init__(self, name, backend=None):
+        self.env, self.params = gymnax.make(name)
+    def reset(self, key, params=None):
+        return self.env.reset(key, self.params)
+    def step(self, key, state, action, params=None):
+        return self.env.step(key, state, 2.0 * action, self.params)
+    def observation_space(self, params):
+        return self.env.observation_space(self.params)
+    def action_space(self, params):
+        return spaces.Box(-1.0, 1.0, (1,))
+
+purejaxrl.BraxGymnaxWrapper = GymnaxPendulum""",
+    config='"ENV_NAME": "Pendulum-v1", "NORMALIZE_ENV": False',
+    episode="""pendulum = GymnaxPendulum("Pendulum-v1")
+network = purejaxrl.ActorCritic(1, activation="tanh")
+
+def episode(params, key):
+    reset_key, key = jax.random.split(key)
+    obs, state = pendulum.reset(reset_key)
+    def step(carry, step_key):
+        obs, state, total = carry
+        pi, _ = network.apply(params, obs)
+        obs, state, reward, _, _ = pendulum.step(step_key, state, jnp.clip(pi.mean(), -1.0, 1.0))
+        return (obs, state, total + reward), None
+    (_, _, total), _ = jax.lax.scan(step, (obs, state, jnp.float32(0.0)), jax.random.split(key, 200))
+    return total""",
+)
+
+SB3_PENDULUM_PPO = SB3_PPO_RUN.substitute(
+    env_id="contextrl/Pendulum-v0", hidden="[256, 256]", greedy=GREEDY
+)
 
 
 # Stable-Baselines3's SAC defaults where both libraries have the setting (one learning rate for actor,
@@ -737,6 +802,26 @@ ROWS = {
         "minibatches, learning rate 2.5e-4 annealed to 0, entropy 0.01, 64×64 tanh networks; "
         "gymnax's CartPole-v1 for PureJaxRL, contextrl/CartPole-v0 at the default context (the "
         "same dynamics, 500 steps) for the others; SB3's torch on one thread",
+    ),
+    "ppo_pendulum": Row(
+        "PPO, Pendulum",
+        200_000,
+        PENDULUM_PPO_SETTINGS,
+        (
+            Library("contextrl", OURS_PENDULUM_PPO),
+            Library("PureJaxRL", PUREJAXRL_PENDULUM_PPO, PUREJAXRL),
+            Library("Stable-Baselines3", SB3_PENDULUM_PPO),
+        ),
+        "rl-baselines3-zoo's Pendulum-v1 settings without its state-dependent exploration and "
+        "with rollouts of 256 steps per copy instead of 1,024, in every library: 4 copies, 10 "
+        "epochs of minibatches of 64, learning rate 1e-3 "
+        "(constant), γ 0.9, λ 0.95, clip 0.2, no entropy bonus, 256×256 tanh networks (PureJaxRL's "
+        "ppo_continuous_action.py fixes that size), a Gaussian with a state-independent deviation; "
+        "contextrl/Pendulum-v0 at the default context for contextrl and SB3, gymnax's Pendulum-v1 "
+        "for PureJaxRL, whose script runs Brax tasks only and gets gymnax's in their place, its "
+        "actions in [-1, 1] scaled to the ±2 torque (so its initial deviation is 2 in torque, 1 in "
+        "the others); the end of an episode at 200 steps bootstraps in contextrl and SB3, ends the "
+        "return in PureJaxRL; SB3 does not clip the value change; SB3's torch on one thread",
     ),
     "dqn_cartpole": Row(
         "DQN, CartPole",
