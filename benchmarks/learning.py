@@ -811,6 +811,11 @@ ROWS = {
             Library("contextrl", OURS_PENDULUM_PPO),
             Library("PureJaxRL", PUREJAXRL_PENDULUM_PPO, PUREJAXRL),
             Library("Stable-Baselines3", SB3_PENDULUM_PPO),
+            Library(
+                "contextrl, value change not clipped",
+                OURS_PENDULUM_PPO,
+                adapt=lambda settings: {**settings, "clip_value": False},
+            ),
         ),
         "rl-baselines3-zoo's Pendulum-v1 settings without its state-dependent exploration and "
         "with rollouts of 256 steps per copy instead of 1,024, in every library: 4 copies, 10 "
@@ -821,7 +826,8 @@ ROWS = {
         "for PureJaxRL, whose script runs Brax tasks only and gets gymnax's in their place, its "
         "actions in [-1, 1] scaled to the ±2 torque (so its initial deviation is 2 in torque, 1 in "
         "the others); the end of an episode at 200 steps bootstraps in contextrl and SB3, ends the "
-        "return in PureJaxRL; SB3 does not clip the value change; SB3's torch on one thread",
+        "return in PureJaxRL; SB3 does not clip the value change (the last line: contextrl with "
+        "clip_value=False); SB3's torch on one thread",
     ),
     "dqn_cartpole": Row(
         "DQN, CartPole",

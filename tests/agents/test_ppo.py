@@ -175,6 +175,7 @@ def test_gated_agent_learns_a_context_gate(cartpole):
         (dict(hidden_sizes=(64, 0)), "hidden_sizes"),
         (dict(activation="gelu"), "activation: unknown 'gelu'"),
         (dict(context_selector="best"), "unknown context selector 'best'"),
+        (dict(clip_value="no"), "clip_value must be True or False, got 'no'"),
     ],
 )
 def test_bad_config_fails_before_compilation(cartpole, change, message):
@@ -182,6 +183,22 @@ def test_bad_config_fails_before_compilation(cartpole, change, message):
     with pytest.raises(ValueError) as error:
         ppo.make_train(config, cartpole, cartpole.default_context())
     assert message in str(error.value)
+
+
+def test_value_clipping_changes_the_critic_update_and_can_be_turned_off(cartpole):
+    """At a step size where a minibatch moves the value by more than clip_eps, the clipped value
+    loss trains another critic than the plain squared error does."""
+    changed = dict(TINY, **TINY_NET, learning_rate=1e-2, anneal_lr=False)
+
+    def trained(clip_value):
+        config = ppo.PPOConfig(**changed, clip_value=clip_value)
+        return ppo.make_train(config, cartpole, cartpole.default_context())(
+            jax.random.key(3)
+        ).params
+
+    clipped, plain = trained(True), trained(False)
+    critic_gap = jax.tree_util.tree_map(lambda a, b: float(jnp.abs(a - b).max()), clipped, plain)
+    assert max(jax.tree_util.tree_leaves(critic_gap["critic"])) > 1e-3
 
 
 def test_observation_mode_the_env_cannot_give(cartpole):

@@ -64,7 +64,9 @@ class PPOConfig(AgentConfig):
     update_epochs: int = 4
     """Passes over each rollout."""
     clip_eps: float = 0.2
-    """Clip range of the policy ratio and of the value change."""
+    """Clip range of the policy ratio and (with ``clip_value``) of the value change."""
+    clip_value: bool = True
+    """Clip the value change to ``clip_eps`` as PureJaxRL and CleanRL do (Stable-Baselines3 does not)."""
     ent_coef: float = 0.01
     """Weight of the entropy bonus."""
     vf_coef: float = 0.5
@@ -84,6 +86,9 @@ class PPOConfig(AgentConfig):
         for name in ("clip_eps", "ent_coef", "vf_coef"):
             check_positive(name, getattr(self, name), allow_zero=True)
         check_fraction("gae_lambda", self.gae_lambda)
+        for name in ("anneal_lr", "clip_value"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.log_std_init, (int, float)) or not np.isfinite(self.log_std_init):
             raise ConfigError(f"log_std_init must be a finite number, got {self.log_std_init!r}")
         batch = self.num_envs * self.num_steps
@@ -225,12 +230,13 @@ def _learner(config: PPOConfig, nets: _Networks):
         obs, context_vector, action, old_log_prob, old_value, advantage, target = batch
         log_prob, entropy = _log_prob_entropy(nets, params, obs, context_vector, action)
         new_value = value(params, obs, context_vector)
-        clipped_value = old_value + jnp.clip(
-            new_value - old_value, -config.clip_eps, config.clip_eps
-        )
-        value_loss = (
-            0.5 * jnp.maximum((new_value - target) ** 2, (clipped_value - target) ** 2).mean()
-        )
+        value_error = (new_value - target) ** 2
+        if config.clip_value:
+            clipped_value = old_value + jnp.clip(
+                new_value - old_value, -config.clip_eps, config.clip_eps
+            )
+            value_error = jnp.maximum(value_error, (clipped_value - target) ** 2)
+        value_loss = 0.5 * value_error.mean()
         ratio = jnp.exp(log_prob - old_log_prob)
         advantage = (advantage - advantage.mean()) / (advantage.std() + 1e-8)
         actor_loss = -jnp.minimum(
