@@ -22,7 +22,6 @@ import json
 import os
 import pathlib
 import sys
-import time
 
 import jax
 
@@ -35,7 +34,7 @@ from contextrl.agents import ppo  # noqa: E402
 from contextrl.core import contextual  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from bench_brax import brax_rollout, contextual_rollout  # noqa: E402
+from bench_brax import best_rates, brax_rollout, contextual_rollout  # noqa: E402
 from learning import BRAX_PPO_SETTINGS  # noqa: E402
 
 COPIES = BRAX_PPO_SETTINGS["num_envs"]
@@ -43,13 +42,8 @@ COPIES = BRAX_PPO_SETTINGS["num_envs"]
 
 def best_seconds(sides: dict, rounds: int) -> dict:
     """Each compiled (run, argument)'s best seconds over ``rounds`` calls made in turn."""
-    best = dict.fromkeys(sides, float("inf"))
-    for i in range(rounds):
-        for name, (run, argument) in sides.items():
-            start = time.perf_counter()
-            jax.block_until_ready(run(jax.random.key(i + 1), argument))
-            best[name] = min(best[name], time.perf_counter() - start)
-    return best
+    rates = best_rates(list(sides.values()), 1, rounds)  # one call per "step": calls per second
+    return {name: 1 / rate for name, rate in zip(sides, rates, strict=True)}
 
 
 def compiled(run, argument):
@@ -58,12 +52,18 @@ def compiled(run, argument):
 
 
 def training(env, steps: int, seeds: int):
-    """Compiled (key, unused) → params: the row's PPO, ``seeds`` runs vmapped."""
+    """Compiled (key, unused) → a checksum of the trained params: the row's PPO, ``seeds`` runs
+    vmapped."""
     config = ppo.PPOConfig(
         total_timesteps=steps, hidden_sizes=(256, 256), activation="tanh", **BRAX_PPO_SETTINGS
     )
     train = jax.vmap(ppo.make_train(config, env, env.default_context()))
-    run = jax.jit(lambda key, _: train(jax.random.split(key, seeds)).params)
+
+    def run(key, _):
+        params = train(jax.random.split(key, seeds)).params
+        return sum(leaf.sum() for leaf in jax.tree_util.tree_leaves(params))
+
+    run = jax.jit(run)
     return compiled(run, 0)
 
 
