@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 
@@ -18,6 +18,12 @@ class EnvSpec:
     factory: Callable[..., Any]
     aliases: tuple[str, ...] = ()
     host: bool = False  # True for environments stepped on the CPU outside JAX (Box2D, MuJoCo, …)
+    # Values of a host environment's ``backend`` argument that build a JAX environment instead (MJX).
+    jax_backends: tuple[str, ...] = ()
+
+    def runs_on_host(self, kwargs: Mapping[str, Any] | None = None) -> bool:
+        """Whether the environment built with ``kwargs`` is a host environment."""
+        return self.host and (kwargs or {}).get("backend") not in self.jax_backends
 
     def build(self, **kwargs: Any):
         """The environment, built with ``kwargs``; an argument its constructor does not take is
@@ -48,12 +54,13 @@ def register(
     family: str,
     aliases: Sequence[str] = (),
     host: bool = False,
+    jax_backends: Sequence[str] = (),
 ) -> None:
     """Add an environment; ids and aliases must be unique."""
     for name in (id, *aliases):
         if name in _REGISTRY or name in _ALIASES:
             raise ValueError(f"environment id {name!r} is already registered")
-    _REGISTRY[id] = EnvSpec(id, family, factory, tuple(aliases), host)
+    _REGISTRY[id] = EnvSpec(id, family, factory, tuple(aliases), host, tuple(jax_backends))
     for alias in aliases:
         _ALIASES[alias] = id
 

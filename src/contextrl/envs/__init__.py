@@ -20,8 +20,19 @@ register("Platformer", platformer.Platformer, family="platformer", aliases=("CAR
 DMC_ENVIRONMENTS = ("DmcWalker", "DmcQuadruped", "DmcFish", "DmcFinger", "DmcPointMass")
 
 
-def _make_dmc(name: str, **kwargs):
-    """Build a dm_control environment; MuJoCo is imported when the first one is made, not on import."""
+DMC_BACKENDS = ("dm_control", "mjx")
+
+
+def _make_dmc(name: str, backend: str = "dm_control", **kwargs):
+    """Build a dm_control environment: on MuJoCo through dm_control (the default, a host
+    environment) or on MJX (``backend="mjx"``, a JAX environment). MuJoCo is imported when the first
+    one is made, not on import."""
+    if backend == "mjx":
+        from contextrl.envs import dmc_mjx
+
+        return getattr(dmc_mjx, f"{name}Mjx")(**kwargs)
+    if backend != "dm_control":
+        raise ValueError(f"{name}: backend must be one of {DMC_BACKENDS}, got {backend!r}")
     from contextrl.envs import dmc
 
     return getattr(dmc, name)(**kwargs)
@@ -30,7 +41,14 @@ def _make_dmc(name: str, **kwargs):
 if importlib.util.find_spec("dm_control") is not None:  # the optional `dmc` extra
     for _name in DMC_ENVIRONMENTS:
         _factory = functools.partial(_make_dmc, _name)
-        register(_name, _factory, family="dmc", aliases=(f"CARL{_name}Env",), host=True)
+        register(
+            _name,
+            _factory,
+            family="dmc",
+            aliases=(f"CARL{_name}Env",),
+            host=True,
+            jax_backends=("mjx",),
+        )
 
 # Brax ids: "Brax" + the class name; CARL's names ("CARLBraxAnt", ...) as aliases.
 BRAX_ENVIRONMENTS = (

@@ -35,7 +35,7 @@ def build_env(
     """The contextrl environment behind an adapter: a registered id, or an env object as it is."""
     if isinstance(env_id, str):
         env_spec = spec(env_id)
-        if env_spec.host:
+        if env_spec.runs_on_host(env_kwargs):
             return env_spec.build(**env_kwargs)
         return env_spec.build(max_steps=max_steps, **env_kwargs)
     if env_kwargs:

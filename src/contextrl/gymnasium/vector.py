@@ -360,7 +360,7 @@ def make_vector_env(
         kwargs.setdefault("max_steps", max_episode_steps)
     if vectorization not in ("async", "sync"):
         raise ValueError(f"vectorization must be 'async' or 'sync', got {vectorization!r}")
-    if not spec(env_id).host:
+    if not spec(env_id).runs_on_host(kwargs):
         if num_workers is not None:
             raise ValueError(
                 f"{env_id} steps its copies in one compiled call; num_workers is for "

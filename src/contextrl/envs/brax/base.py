@@ -32,7 +32,7 @@ import numpy as np
 from contextrl.context.features import ContextBase, context_type, feature
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
-from contextrl.envs.brax.mass import mass_constants, pose_tables
+from contextrl.envs.mujoco_mass import mass_constants, pose_tables
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -274,7 +274,7 @@ class BraxEnv(Env):
     def _mass_changes(self, stock, values) -> dict[str, jax.Array]:
         """Masses set per link, each body's inertia scaled by the same ratio (density kept); on the
         pipelines that read them (MJX, generalized), the constants MuJoCo derives from the masses are
-        recomputed (``mass.py``), and are the stock ones where the masses are."""
+        recomputed (``contextrl.envs.mujoco_mass``), and are the stock ones where the masses are."""
         # MuJoCo's body 0 is the world; brax's links start at body 1.
         body_ids = np.array([stock.link_names.index(link) + 1 for link, _ in self.masses.values()])
         stock_mass = jnp.asarray(stock.body_mass)
@@ -420,7 +420,7 @@ def _effective_mass_exponents(brax_name: str, backend: str) -> tuple[float, floa
 
 @functools.cache
 def _pose_tables(env_class: type, fluid: bool):
-    """The mass-independent tables of a task's model at its initial pose (``mass.py``), made once."""
+    """The mass-independent tables of a task's model at its initial pose (``contextrl.envs.mujoco_mass``), made once."""
     return pose_tables(env_class.load("mjx", fluid).sys.mj_model)
 
 
