@@ -161,6 +161,7 @@ class DmcMjxEnv(Env):
     # False where a pair of the stock model's geoms has no MJX collision function; only for tasks that
     # disable contacts anyway (Fish).
     contacts: ClassVar[bool] = True
+    goal_size: ClassVar[int] = 3
     default_max_steps = 1000
 
     def __post_init__(self):
@@ -251,6 +252,11 @@ class DmcMjxEnv(Env):
         """Model fields a domain's own features set (PointMass's arena); none by default."""
         return {}
 
+    def episode_model(self, model, goal):
+        """The model of one episode: ``model`` with what the start drew into it (PointMass-hard's
+        actuator directions); ``model`` itself by default."""
+        return model
+
     def sub_steps(self, context) -> jax.Array:
         """Physics steps per control step under ``context`` (the reference's rule)."""
         timestep = context.as_dict().get("timestep")
@@ -277,13 +283,14 @@ class DmcMjxEnv(Env):
 
         model = self.model(context)
         data, goal = self.start(key, model, self._stock.blank, context)
-        goal = jnp.zeros(3) if goal is None else goal
+        goal = jnp.zeros(self.goal_size) if goal is None else goal
+        model = self.episode_model(model, goal)
         return DmcState(mjx.forward(model, data), jnp.asarray(goal, jnp.float32))
 
     def transition(self, key, state: DmcState, action, context):
         from mujoco import mjx
 
-        model = self.model(context)
+        model = self.episode_model(self.model(context), state.goal)
         count = self.sub_steps(context)
 
         def physics_step(carry):

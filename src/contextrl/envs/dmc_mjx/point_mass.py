@@ -1,0 +1,97 @@
+"""PointMass on MJX (dm_control ``point_mass-easy`` and ``point_mass-hard``): a ball pushed to a target.
+
+The start, observation and reward are dm_control's, with the reference's own features
+(:mod:`contextrl.envs.dmc.point_mass`): the ball's ``mass`` (with its inertia and the derived
+constants), the arena's ``area_size`` (the joint ranges; the walls do not collide: the stock model
+disables contacts), the target (``target_x/y``, read by the reward) and the start, the stock uniform
+draw scaled by ``start_spread`` about (``starting_x``, ``starting_y``) and clipped to the arena.
+``hard`` draws the two actuators' directions per episode, as dm_control does (held in the state and
+written into the tendons' coefficients, ``wrap_prm``).
+
+The reference refuses a start or target outside the arena; a context here is not checked for that
+combination (the start is clipped into the arena, a target outside it is out of reach).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from contextrl.envs.dmc import DmcPointMass, DmcPointMassContext
+from contextrl.envs.dmc_mjx.base import DmcMjxEnv, tolerance
+
+PARALLEL = 0.9  # dm_control redraws the second direction while |cos| between the two exceeds this
+
+
+def random_direction(key) -> jax.Array:
+    direction = jax.random.normal(key, (2,))
+    return direction / jnp.linalg.norm(direction)
+
+
+@dataclasses.dataclass(frozen=True)
+class DmcPointMassMjx(DmcMjxEnv):
+    """PointMass on MJX; tasks ``easy`` (default) and ``hard``; 1000 control steps of 20 ms."""
+
+    host_class = DmcPointMass
+    context_type = DmcPointMassContext
+    left_out = DmcPointMass.left_out
+    tasks = ("easy", "hard")
+    default_task = "easy"
+    goal_size = 4  # hard: the two actuators' directions
+
+    def area_scale(self, context) -> jax.Array:
+        stock = self.context_space.features["area_size"].default
+        return context.area_size / jnp.float32(stock)
+
+    def mass_ratio(self, values):
+        ball = self.index("body", "pointmass")
+        stock = self.stock.mj_model.body_mass[ball]
+        return jnp.ones(self.stock.mj_model.nbody).at[ball].set(values["mass"] / jnp.float32(stock))
+
+    def task_model_changes(self, values):
+        scale = values["area_size"] / jnp.float32(self.context_space.features["area_size"].default)
+        return {"jnt_range": jnp.asarray(self.stock.model.jnt_range) * scale}
+
+    def episode_model(self, model, goal):
+        if self.task == "easy":
+            return model
+        return model.replace(wrap_prm=jnp.asarray(model.wrap_prm).at[:4].set(goal))
+
+    def start(self, key, model, data, context):
+        joints_key, first_key, second_key = jax.random.split(key, 3)
+        drawn = self.randomize_joints(joints_key, data, model.jnt_range).qpos
+        limit = model.jnt_range[:, 1]
+        centre = jnp.stack([context.starting_x, context.starting_y])
+        qpos = jnp.clip(centre + context.start_spread * drawn, -limit, limit)
+        goal = None
+        if self.task == "hard":
+            first = random_direction(first_key)
+
+            def redraw(carry):
+                attempt, _ = carry
+                return attempt + 1, random_direction(jax.random.fold_in(second_key, attempt + 1))
+
+            def parallel(carry):
+                return jnp.abs(jnp.dot(first, carry[1])) > PARALLEL
+
+            start = (0, random_direction(jax.random.fold_in(second_key, 0)))
+            _, second = jax.lax.while_loop(parallel, redraw, start)
+            goal = jnp.concatenate([first, second])
+        return data.replace(qpos=qpos), goal
+
+    def task_observation(self, data, goal, context):
+        return [data.qpos, data.qvel]
+
+    def reward(self, data, goal, action, context):
+        model = self.stock.mj_model
+        target_geom = self.index("geom", "target")
+        target = jnp.stack(
+            [context.target_x, context.target_y, jnp.float32(model.geom_pos[target_geom, 2])]
+        )
+        ball = data.geom_xpos[self.index("geom", "pointmass")]
+        size = float(model.geom_size[target_geom, 0])
+        near_target = tolerance(jnp.linalg.norm(target - ball), (0.0, size), size)
+        control = tolerance(action, margin=1.0, value_at_margin=0.0, sigmoid="quadratic").mean()
+        return near_target * (control + 4) / 5
