@@ -204,13 +204,14 @@ def add_list(subparsers) -> None:
 
 def run_describe(args: argparse.Namespace) -> int:
     env_spec = crl.spec(args.env)
-    if args.backend is None:
-        env = env_spec.factory()
-    elif env_spec.family != "brax":
-        raise ValueError(f"--backend: only the Brax environments have one; {env_spec.id} has none")
-    else:
-        env = env_spec.factory(backend=args.backend)
-    print(f"{env_spec.id} ({env_spec.family}, {'host' if env_spec.host else 'jax'})")
+    options = {} if args.backend is None else {"backend": args.backend}
+    if options and env_spec.family not in ("brax", "dmc"):
+        raise ValueError(
+            f"--backend: only the Brax and dm_control environments have one; {env_spec.id} has none"
+        )
+    env = env_spec.factory(**options)
+    kind = "host" if env_spec.runs_on_host(options) else "jax"
+    print(f"{env_spec.id} ({env_spec.family}, {kind})")
     print((type(env).__doc__ or "").strip().splitlines()[0])
     print(
         f"action {_space_label(env.action_space)}, "
@@ -233,8 +234,8 @@ def add_describe(subparsers) -> None:
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     parser.add_argument(
         "--backend",
-        help="Brax: the physics pipeline (mjx, generalized, spring, positional); the features "
-        "listed are those that act in it",
+        help="Brax: the physics pipeline (mjx, generalized, spring, positional); dm_control: "
+        "dm_control (default) or mjx; the features listed are those that act in it",
     )
     parser.set_defaults(handler=run_describe)
 

@@ -230,8 +230,18 @@ def _rollout(env: Env, steps: int):
     return rollout
 
 
-def check_env(env: Env, key=None, *, num_contexts: int = 8, steps: int | None = None) -> None:
-    """Run every check on a JAX environment; raises AssertionError with what went wrong."""
+def check_env(
+    env: Env,
+    key=None,
+    *,
+    num_contexts: int = 8,
+    steps: int | None = None,
+    effect_steps: int = 200,
+) -> None:
+    """Run every check on a JAX environment; raises AssertionError with what went wrong.
+
+    ``steps`` is the rollout's length (default: past the time limit), ``effect_steps`` how long each
+    feature's effect is looked for (:func:`check_feature_effects`)."""
     key = jax.random.key(0) if key is None else key
     steps = env.max_steps + 5 if steps is None else steps
     contexts_key, rollout_key, effects_key = jax.random.split(key, 3)
@@ -299,4 +309,4 @@ def check_env(env: Env, key=None, *, num_contexts: int = 8, steps: int | None = 
     env.action_space.to_gymnasium()
     obs_space.to_gymnasium()
 
-    check_feature_effects(env, effects_key)
+    check_feature_effects(env, effects_key, steps=effect_steps)

@@ -85,7 +85,10 @@ def test_render_writes_a_grid_animation(tmp_path, capsys):
     ("argv", "message"),
     [
         (["describe", "CartPol"], "Did you mean"),
-        (["describe", "CartPole", "--backend", "spring"], "only the Brax environments have one"),
+        (
+            ["describe", "CartPole", "--backend", "spring"],
+            "only the Brax and dm_control environments",
+        ),
         (["render", "CartPole", "--context", "length=9"], "outside its bounds"),
         (["render", "CartPole", "--context", "lenght=1"], "unknown context feature"),
         (["render", "CartPole", "--grid", "length"], "FEATURE=V1,V2"),

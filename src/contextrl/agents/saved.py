@@ -67,14 +67,17 @@ def load_policy(path: str | os.PathLike) -> SavedPolicy:
             f"{path}: the checkpoint does not name its {' and '.join(missing)}; save it with "
             "save_checkpoint(path, params, config, train_contexts=..., agent=..., env=...)"
         )
-    if crl.spec(metadata["env"]).host:
+    options = {"backend": metadata["backend"]} if metadata.get("backend") else {}
+    if crl.spec(metadata["env"]).runs_on_host(options):
         raise ValueError(
             f"{path}: {metadata['env']} is a host environment; load_policy rebuilds JAX policies. "
             "Evaluate a host run's agents with: contextrl eval RUN --test FEATURE=DIST"
         )
     agent = get_agent(metadata["agent"])
     max_steps = metadata.get("max_steps")
-    env = crl.make(metadata["env"], **({} if max_steps is None else {"max_steps": max_steps}))
+    env = crl.make(
+        metadata["env"], **options, **({} if max_steps is None else {"max_steps": max_steps})
+    )
     config = None
     if agent.config_type is not None and info.get("config") is not None:
         config = _rebuild_config(agent.config_type, info["config"])

@@ -1,8 +1,9 @@
 """The constants MuJoCo derives from the masses when it loads a model (``mj_setConst``), recomputed for a
 context's masses inside the compiled step.
 
-MJX (and brax's generalized pipeline) read ``body_invweight0`` and ``dof_invweight0``, the mean inverse
-inertia each body and joint has at the initial pose, to set how soft contacts and joint limits are;
+MJX (and brax's generalized pipeline) read ``body_invweight0``, ``dof_invweight0`` and
+``tendon_invweight0``, the mean inverse inertia each body, joint and tendon has at the initial pose, to
+set how soft contacts, joint limits and tendon constraints are;
 ``body_subtreemass`` enters the subtree velocities. A system whose masses change keeps the stock values
 unless they are recomputed, so contacts would still behave as if the stock masses were there.
 
@@ -11,7 +12,8 @@ diag(armature)``, with ``Jp_b``/``Jr_b`` the body's Jacobians at its centre of m
 frame; none of these but ``m_b`` and ``I_b`` depends on the masses, so they are computed once per model
 (with MuJoCo, on the host) and ``M`` is a sum of small arrays per context. Then, as ``mj_setConst``: a
 body's weight is the mean diagonal of the translational and of the rotational block of ``J M⁻¹ Jᵀ``, a
-joint's the mean diagonal of ``M⁻¹`` over its translational or rotational degrees of freedom; a body
+joint's the mean diagonal of ``M⁻¹`` over its translational or rotational degrees of freedom, a
+tendon's ``J M⁻¹ Jᵀ`` with its Jacobian ``J`` at the initial pose; a body
 that moves without rotating (and its joints) weighs ``1 / mass``; bodies welded to the world nothing.
 """
 
@@ -38,6 +40,7 @@ class PoseTables:
     simple: np.ndarray  # (nbody,) bool: moves without rotating (MuJoCo's weight there: 1 / mass)
     dof_body: np.ndarray  # (nv,): the body each dof moves
     dof_group: np.ndarray  # (nv,): dofs of one group share one weight (a free joint has two groups)
+    tendon_jacobian: np.ndarray  # (ntendon, nv)
 
 
 def pose_tables(model) -> PoseTables:
@@ -46,8 +49,7 @@ def pose_tables(model) -> PoseTables:
 
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
+    mujoco.mj_fwdPosition(model, data)  # kinematics, centres of mass, tendons
     jacobian = np.zeros((model.nbody, 6, model.nv))
     for body in range(model.nbody):
         mujoco.mj_jacBodyCom(model, data, jacobian[body, :3], jacobian[body, 3:], body)
@@ -74,12 +76,26 @@ def pose_tables(model) -> PoseTables:
         simple=np.asarray(model.body_simple) == 2,
         dof_body=np.asarray(model.dof_bodyid).copy(),
         dof_group=dof_group,
+        tendon_jacobian=tendon_jacobian(model, data),
     )
 
 
+def tendon_jacobian(model, data) -> np.ndarray:
+    """The tendons' Jacobian (ntendon, nv), dense (MuJoCo keeps it sparse)."""
+    import mujoco
+
+    dense = np.zeros((model.ntendon, model.nv))
+    if model.ntendon:
+        mujoco.mju_sparse2dense(
+            dense, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind
+        )
+    return dense
+
+
 def mass_constants(tables: PoseTables, mass: jax.Array, inertia: jax.Array) -> dict[str, jax.Array]:
-    """``body_invweight0`` (nbody, 2), ``dof_invweight0`` (nv,) and ``body_subtreemass`` (nbody,) for
-    body masses ``mass`` (nbody,) and principal inertias ``inertia`` (nbody, 3)."""
+    """``body_invweight0`` (nbody, 2), ``dof_invweight0`` (nv,), ``tendon_invweight0`` (ntendon,) and
+    ``body_subtreemass`` (nbody,) for body masses ``mass`` (nbody,) and principal inertias ``inertia``
+    (nbody, 3)."""
     translation, rotation = tables.jacobian[:, :3], tables.jacobian[:, 3:]
     world_inertia = jnp.einsum("bij,bj,bkj->bik", tables.frame, inertia, tables.frame)
     matrix = (
@@ -102,4 +118,10 @@ def mass_constants(tables: PoseTables, mass: jax.Array, inertia: jax.Array) -> d
     subtree = mass
     for body_id in range(len(tables.parent) - 1, 0, -1):
         subtree = subtree.at[tables.parent[body_id]].add(subtree[body_id])
-    return {"body_invweight0": body, "dof_invweight0": dof, "body_subtreemass": subtree}
+    tendon = jnp.einsum("tn,nm,tm->t", tables.tendon_jacobian, inverse, tables.tendon_jacobian)
+    return {
+        "body_invweight0": body,
+        "dof_invweight0": dof,
+        "tendon_invweight0": tendon,
+        "body_subtreemass": subtree,
+    }

@@ -121,7 +121,7 @@ def environment_section(spec: CommonSpec, changed: Sequence[str] = ()) -> Sectio
     doc = (type(env).__doc__ or "").strip().splitlines()[0]
     text = [
         f"{registered.id}, from the {registered.family} family "
-        f"({'a host simulator' if registered.host else 'JAX'}): {doc}"
+        f"({'a host simulator' if spec.host else 'JAX'}): {doc}"
     ]
     properties = {
         "environment": registered.id,

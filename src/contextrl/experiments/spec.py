@@ -129,7 +129,7 @@ def parse_assignments(
     return out
 
 
-_HOST_ENVS: dict[str, Any] = {}
+_HOST_ENVS: dict[tuple[str, str | None], Any] = {}
 
 
 def parse_distribution(feature: str, value: Any):
@@ -232,6 +232,9 @@ class CommonSpec:
     seed: int = 0  # base seed: contexts, training keys and bootstrap all derive from it
     eval_episodes: int = 10
     max_steps: int | None = None  # episode time limit (None: the environment's)
+    backend: str | None = (
+        None  # the environment's simulator backend (None: its default), e.g. "mjx"
+    )
     batch_size: int = 16  # trials trained together in one vmapped call (one chunk)
     bootstrap_reps: int = 2000
 
@@ -258,6 +261,8 @@ class CommonSpec:
         check_int("bootstrap_reps", self.bootstrap_reps, 1)
         if self.max_steps is not None:
             check_int("max_steps", self.max_steps, 1, MAX_INT32)
+        if self.backend is not None and not isinstance(self.backend, str):
+            raise SpecError(f"backend: expected a backend name, got {self.backend!r}")
         self._refuse_unused(self.unused_fields)
         if not self.trains_agents:
             return
@@ -321,22 +326,33 @@ class CommonSpec:
         return sum(budgets[t.variant] for t in trials)
 
     @property
+    def env_options(self) -> dict[str, Any]:
+        """The environment's constructor options this spec sets (its backend)."""
+        return {} if self.backend is None else {"backend": self.backend}
+
+    @property
     def host(self) -> bool:
         """Whether the environment is a host environment (trained through the host collector)."""
         try:
-            return crl.spec(self.env).host
+            return crl.spec(self.env).runs_on_host(self.env_options)
         except KeyError as error:
             raise SpecError(f"env: {error.args[0]}") from None
 
     def make_env(self):
         """The environment (hidden observation; agents add their own context input). A host
         environment is built once per process and shared: specs only read its spaces."""
-        if self.host:
-            if self.env not in _HOST_ENVS:
-                _HOST_ENVS[self.env] = crl.make(self.env)
-            return _HOST_ENVS[self.env]
-        kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
-        return crl.make(self.env, **kwargs)
+        try:
+            if self.host:
+                key = (self.env, self.backend)
+                if key not in _HOST_ENVS:
+                    _HOST_ENVS[key] = crl.make(self.env, **self.env_options)
+                return _HOST_ENVS[key]
+            kwargs = {} if self.max_steps is None else {"max_steps": self.max_steps}
+            return crl.make(self.env, **self.env_options, **kwargs)
+        except ValueError as error:
+            if self.backend is None or "backend" not in str(error):
+                raise
+            raise SpecError(f"backend: {error}") from None
 
     def space(self):
         return self.make_env().context_space

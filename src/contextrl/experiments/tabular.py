@@ -284,7 +284,7 @@ class TabularSpec(CommonSpec):
 
     trains_agents = False
     unused_fields = dict.fromkeys(
-        ("env", "agent", "agent_options", "variants", "max_steps"),
+        ("env", "agent", "agent_options", "variants", "max_steps", "backend"),
         "trains no agent on an environment",
     )
     vary_field = None

@@ -246,6 +246,7 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
         "agent": spec.agent,
         "env": spec.env,
         "max_steps": spec.max_steps,
+        **spec.env_options,
     }
     return ChunkResult(
         pd.concat(eval_frames, ignore_index=True),

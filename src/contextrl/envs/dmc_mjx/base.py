@@ -66,7 +66,6 @@ class Stock:
     blank: Any  # MJX data as MuJoCo's reset leaves it (what a diverged step is observed from)
     control_timestep: float
     tables: Any
-    acceleration_sensors: np.ndarray  # bool per sensordata entry: written in the acceleration stage
 
 
 @functools.cache
@@ -96,16 +95,23 @@ def load_stock(host_class: type, task: str, medium: bool, contacts: bool) -> Sto
     if medium:
         opt = opt.replace(_impl=dataclasses.replace(opt._impl, has_fluid_params=True))
     model = model.replace(opt=opt)
-    stage = np.asarray(mj_model.sensor_needstage) == mujoco.mjtStage.mjSTAGE_ACC
-    acceleration = np.repeat(stage, np.asarray(mj_model.sensor_dim))
     return Stock(
         mj_model=mj_model,
         model=model,
         blank=mjx.make_data(model),
         control_timestep=float(host.control_timestep),
         tables=pose_tables(mj_model),
-        acceleration_sensors=acceleration,
     )
+
+
+def refresh(model, data):
+    """The position- and velocity-dependent quantities and sensors of ``data``'s state, as dm_control
+    computes them after its sub-steps (``mj_step1``); acceleration-stage sensors keep their values."""
+    from mujoco import mjx
+
+    data = mjx.com_pos(model, mjx.kinematics(model, data))
+    data = mjx.sensor_pos(model, data)
+    return mjx.sensor_vel(model, mjx.com_vel(model, data))
 
 
 def copy_model(model):
@@ -161,7 +167,6 @@ class DmcMjxEnv(Env):
     # False where a pair of the stock model's geoms has no MJX collision function; only for tasks that
     # disable contacts anyway (Fish).
     contacts: ClassVar[bool] = True
-    goal_size: ClassVar[int] = 3
     default_max_steps = 1000
 
     def __post_init__(self):
@@ -252,11 +257,6 @@ class DmcMjxEnv(Env):
         """Model fields a domain's own features set (PointMass's arena); none by default."""
         return {}
 
-    def episode_model(self, model, goal):
-        """The model of one episode: ``model`` with what the start drew into it (PointMass-hard's
-        actuator directions); ``model`` itself by default."""
-        return model
-
     def sub_steps(self, context) -> jax.Array:
         """Physics steps per control step under ``context`` (the reference's rule)."""
         timestep = context.as_dict().get("timestep")
@@ -283,14 +283,13 @@ class DmcMjxEnv(Env):
 
         model = self.model(context)
         data, goal = self.start(key, model, self._stock.blank, context)
-        goal = jnp.zeros(self.goal_size) if goal is None else goal
-        model = self.episode_model(model, goal)
+        goal = jnp.zeros(3) if goal is None else goal
         return DmcState(mjx.forward(model, data), jnp.asarray(goal, jnp.float32))
 
     def transition(self, key, state: DmcState, action, context):
         from mujoco import mjx
 
-        model = self.episode_model(self.model(context), state.goal)
+        model = self.model(context)
         count = self.sub_steps(context)
 
         def physics_step(carry):
@@ -299,12 +298,7 @@ class DmcMjxEnv(Env):
 
         data = state.data.replace(ctrl=action)
         _, data = jax.lax.while_loop(lambda c: c[0] < count, physics_step, (0, data))
-        fresh = mjx.forward(model, data)
-        acceleration = self._stock.acceleration_sensors
-        if acceleration.any():
-            fresh = fresh.replace(
-                sensordata=jnp.where(acceleration, data.sensordata, fresh.sensordata)
-            )
+        fresh = refresh(model, data)
         diverged = jnp.logical_not(
             jnp.all(
                 jnp.stack(

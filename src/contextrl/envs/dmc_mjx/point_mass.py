@@ -1,12 +1,12 @@
-"""PointMass on MJX (dm_control ``point_mass-easy`` and ``point_mass-hard``): a ball pushed to a target.
+"""PointMass on MJX (dm_control ``point_mass-easy``): a ball on a plane pushed towards a target.
 
 The start, observation and reward are dm_control's, with the reference's own features
 (:mod:`contextrl.envs.dmc.point_mass`): the ball's ``mass`` (with its inertia and the derived
 constants), the arena's ``area_size`` (the joint ranges; the walls do not collide: the stock model
 disables contacts), the target (``target_x/y``, read by the reward) and the start, the stock uniform
 draw scaled by ``start_spread`` about (``starting_x``, ``starting_y``) and clipped to the arena.
-``hard`` draws the two actuators' directions per episode, as dm_control does (held in the state and
-written into the tendons' coefficients, ``wrap_prm``).
+``hard`` (the actuators' directions drawn per episode, in the tendons' coefficients ``wrap_prm``) is
+offered on dm_control only: MJX reads ``wrap_prm`` as a constant of the compiled program.
 
 The reference refuses a start or target outside the arena; a context here is not checked for that
 combination (the start is clipped into the arena, a target outside it is out of reach).
@@ -16,34 +16,21 @@ from __future__ import annotations
 
 import dataclasses
 
-import jax
 import jax.numpy as jnp
 
 from contextrl.envs.dmc import DmcPointMass, DmcPointMassContext
 from contextrl.envs.dmc_mjx.base import DmcMjxEnv, tolerance
 
-PARALLEL = 0.9  # dm_control redraws the second direction while |cos| between the two exceeds this
-
-
-def random_direction(key) -> jax.Array:
-    direction = jax.random.normal(key, (2,))
-    return direction / jnp.linalg.norm(direction)
-
 
 @dataclasses.dataclass(frozen=True)
 class DmcPointMassMjx(DmcMjxEnv):
-    """PointMass on MJX; tasks ``easy`` (default) and ``hard``; 1000 control steps of 20 ms."""
+    """PointMass on MJX; task ``easy``; 1000 control steps of 20 ms."""
 
     host_class = DmcPointMass
     context_type = DmcPointMassContext
     left_out = DmcPointMass.left_out
-    tasks = ("easy", "hard")
+    tasks = ("easy",)
     default_task = "easy"
-    goal_size = 4  # hard: the two actuators' directions
-
-    def area_scale(self, context) -> jax.Array:
-        stock = self.context_space.features["area_size"].default
-        return context.area_size / jnp.float32(stock)
 
     def mass_ratio(self, values):
         ball = self.index("body", "pointmass")
@@ -54,32 +41,12 @@ class DmcPointMassMjx(DmcMjxEnv):
         scale = values["area_size"] / jnp.float32(self.context_space.features["area_size"].default)
         return {"jnt_range": jnp.asarray(self.stock.model.jnt_range) * scale}
 
-    def episode_model(self, model, goal):
-        if self.task == "easy":
-            return model
-        return model.replace(wrap_prm=jnp.asarray(model.wrap_prm).at[:4].set(goal))
-
     def start(self, key, model, data, context):
-        joints_key, first_key, second_key = jax.random.split(key, 3)
-        drawn = self.randomize_joints(joints_key, data, model.jnt_range).qpos
+        drawn = self.randomize_joints(key, data, model.jnt_range).qpos
         limit = model.jnt_range[:, 1]
         centre = jnp.stack([context.starting_x, context.starting_y])
         qpos = jnp.clip(centre + context.start_spread * drawn, -limit, limit)
-        goal = None
-        if self.task == "hard":
-            first = random_direction(first_key)
-
-            def redraw(carry):
-                attempt, _ = carry
-                return attempt + 1, random_direction(jax.random.fold_in(second_key, attempt + 1))
-
-            def parallel(carry):
-                return jnp.abs(jnp.dot(first, carry[1])) > PARALLEL
-
-            start = (0, random_direction(jax.random.fold_in(second_key, 0)))
-            _, second = jax.lax.while_loop(parallel, redraw, start)
-            goal = jnp.concatenate([first, second])
-        return data.replace(qpos=qpos), goal
+        return data.replace(qpos=qpos), None
 
     def task_observation(self, data, goal, context):
         return [data.qpos, data.qvel]
