@@ -30,6 +30,7 @@ its ``PhysicsError`` (MuJoCo resets the data, and the observation is read from t
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 from typing import Any, ClassVar
@@ -82,7 +83,7 @@ def load_stock(host_class: type, task: str, medium: bool, contacts: bool) -> Sto
     from mujoco import mjx
 
     host = reference(host_class, task)
-    mj_model = copy_model(host.physics.model.ptr)
+    mj_model = copy.deepcopy(host.physics.model.ptr)  # the reference's own model stays untouched
     mj_model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
     mj_model.opt.gravity[:] = host.physics.model.opt.gravity
     if host.physics.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
@@ -112,13 +113,6 @@ def refresh(model, data):
     data = mjx.com_pos(model, mjx.kinematics(model, data))
     data = mjx.sensor_pos(model, data)
     return mjx.sensor_vel(model, mjx.com_vel(model, data))
-
-
-def copy_model(model):
-    """A copy of a MuJoCo model (the reference's own stays untouched)."""
-    import copy
-
-    return copy.deepcopy(model)
 
 
 # ---- dm_control's reward shaping, in JAX ----------------------------------------------------------
@@ -184,6 +178,7 @@ class DmcMjxEnv(Env):
     # ---- the model per copy --------------------------------------------------------------------------
     @property
     def stock(self) -> Stock:
+        """The task's stock model (MuJoCo's and MJX's copies) and what is derived from it once."""
         return self._stock
 
     @property
@@ -259,11 +254,8 @@ class DmcMjxEnv(Env):
 
     def sub_steps(self, context) -> jax.Array:
         """Physics steps per control step under ``context`` (the reference's rule)."""
-        timestep = context.as_dict().get("timestep")
-        if timestep is None:
-            stock = float(self._stock.mj_model.opt.timestep)
-            return jnp.asarray(max(1, round(self.control_timestep / stock)))
-        return jnp.maximum(1, jnp.round(self.control_timestep / timestep)).astype(jnp.int32)
+        steps = jnp.round(self.control_timestep / context.timestep)
+        return jnp.maximum(1, steps).astype(jnp.int32)
 
     # ---- the task, written by each domain -------------------------------------------------------------
     def start(self, key, model, data, context) -> tuple[Any, jax.Array]:
@@ -275,6 +267,7 @@ class DmcMjxEnv(Env):
         raise NotImplementedError
 
     def reward(self, data, goal, action, context) -> jax.Array:
+        """The task's reward for the state a step ended in."""
         raise NotImplementedError
 
     # ---- the core Env pieces ---------------------------------------------------------------------------
@@ -299,16 +292,11 @@ class DmcMjxEnv(Env):
         data = state.data.replace(ctrl=action)
         _, data = jax.lax.while_loop(lambda c: c[0] < count, physics_step, (0, data))
         fresh = refresh(model, data)
-        diverged = jnp.logical_not(
-            jnp.all(
-                jnp.stack(
-                    [
-                        jnp.all(jnp.isfinite(x) & (jnp.abs(x) <= MAX_VALUE))
-                        for x in (fresh.qpos, fresh.qvel, data.qacc)
-                    ]
-                )
-            )
-        )
+        finite = [
+            jnp.all(jnp.isfinite(x) & (jnp.abs(x) <= MAX_VALUE))
+            for x in (fresh.qpos, fresh.qvel, data.qacc)
+        ]
+        diverged = ~(finite[0] & finite[1] & finite[2])
         blank = self._stock.blank.replace(ctrl=action)
         data = jax.tree_util.tree_map(lambda a, b: jnp.where(diverged, a, b), blank, fresh)
         reward = jnp.where(diverged, 0.0, self.reward(data, state.goal, action, context))

@@ -71,10 +71,8 @@ class DmcFingerMjx(DmcMjxEnv):
         angle_key, joints_key = jax.random.split(key)
         goal = None
         if self.task != "spin":
-            model_ = self.stock.mj_model
             hinge_x, _, hinge_z = self.hinge_anchor
-            cap = model_.geom_size[self.index("geom", "cap1")]
-            radius = float(cap.sum())
+            radius = float(self.stock.mj_model.geom_size[self.index("geom", "cap1")].sum())
             angle = jax.random.uniform(angle_key, (), minval=-np.pi, maxval=np.pi)
             goal = jnp.stack(
                 [hinge_x + radius * jnp.sin(angle), 0.0, hinge_z + radius * jnp.cos(angle)]
