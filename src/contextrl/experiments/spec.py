@@ -232,9 +232,8 @@ class CommonSpec:
     seed: int = 0  # base seed: contexts, training keys and bootstrap all derive from it
     eval_episodes: int = 10
     max_steps: int | None = None  # episode time limit (None: the environment's)
-    backend: str | None = (
-        None  # the environment's simulator backend (None: its default), e.g. "mjx"
-    )
+    # the environment's simulator backend (None: its default), e.g. "mjx" for dm_control on MJX
+    backend: str | None = None
     batch_size: int = 16  # trials trained together in one vmapped call (one chunk)
     bootstrap_reps: int = 2000
 

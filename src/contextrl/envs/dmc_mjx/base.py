@@ -84,9 +84,8 @@ def load_stock(host_class: type, task: str, medium: bool, contacts: bool) -> Sto
 
     host = reference(host_class, task)
     mj_model = copy.deepcopy(host.physics.model.ptr)  # the reference's own model stays untouched
-    mj_model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
-    mj_model.opt.gravity[:] = host.physics.model.opt.gravity
-    if host.physics.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+    if mj_model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+        mj_model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
         mj_model.opt.gravity[:] = 0.0
     if not contacts:
         mj_model.geom_contype[:] = 0
