@@ -26,7 +26,8 @@ from contextrl.paper.checks import (
     _decide,
     _zone,
 )
-from contextrl.paper.plans import planned
+from contextrl.paper.plans import planned, training_steps
+from contextrl.paper.runs import plan_text
 from tests.helpers import ROOT
 from tests.helpers.report_tables import check_report
 
@@ -137,6 +138,19 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
         assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
     assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
+    # the plan `paper run` prints first: chunks finished and steps left, from the run's own files
+    gap_run = RunDir(paper_runs / "optgap_cartpole-tiny" / "optgap_cartpole")
+    plan = planned(gap_run.spec())
+    steps = f"{training_steps(gap_run.spec()):,}"
+    figure = FIGURES["optgap_cartpole"]
+    assert (
+        f"optgap_cartpole: {len(plan.trials)} trials in {len(plan.chunks)} chunk(s) of up to "
+        f"{gap_run.spec().batch_size}, {len(plan.chunks)} finished; 0 of {steps} training steps "
+        "left\n  time left: nothing left to train"
+    ) in plan_text(figure, "tiny", paper_runs)
+    fresh = plan_text(figure, "tiny", paper_runs / "elsewhere", batch_size=1)
+    assert f"{len(plan.trials)} chunk(s) of up to 1, 0 finished; {steps} of {steps}" in fresh
+    assert "time left: not estimated (no finished run of these agents)" in fresh
 
 
 def test_every_spec_states_the_decision_rule_its_check_applies():

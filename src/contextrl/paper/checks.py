@@ -183,12 +183,16 @@ def gap_check(at_least: float, finished: bool = False) -> Check:
         )
         if finished:
             decisions.append(_decide(done["difference"]))
-            relative = 1 - done["general"] / done["specialists"] if done["specialists"] else np.nan
+            here = (
+                f"here {1 - done['general'] / done['specialists']:.0%}"
+                if done["specialists"]
+                else "here the specialists finished none"
+            )
             text += (
                 f"finished episodes (return ≥ {done['threshold']:.4g}): general "
                 f"{done['general']:.2f}, specialists {done['specialists']:.2f}, difference "
                 f"{done['difference']} (needs to lie above 0; the paper: about 40% fewer for the "
-                f"general agent, here {relative:.0%}); "
+                f"general agent, {here}); "
             )
         text += (
             f"P(specialist > general) = {stats.improvement}; mean return per seed: general "

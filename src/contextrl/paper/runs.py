@@ -6,6 +6,7 @@ extrapolated."""
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -87,6 +88,8 @@ def run_figure(
     ``batch_size`` sets how many trials a new part trains in one vmapped call (a GPU takes all)."""
     figure = FIGURES[name]
     folder = figure_folder(root, name, scale)
+    if progress:
+        print(plan_text(figure, scale, root, batch_size), file=sys.stderr, flush=True)
     for part in figure.files():
         path = folder / part
         start = time.perf_counter()
@@ -152,11 +155,19 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
         return (
             f"{duration(sum(wall_seconds(r) for r in runs.values()))} on {machines(runs.values())}"
         )
-    steps, keys = 0, set()
-    for part in figure.files():
-        spec = parse_spec(spec_data(figure, part, scale))
-        steps += training_steps(spec)
-        keys.add((spec.env, spec.agent))
+    specs = [parse_spec(spec_data(figure, part, scale)) for part in figure.files()]
+    rate = seconds_per_step(specs, scale, root)
+    steps = sum(training_steps(spec) for spec in specs)
+    if rate is None or not steps:
+        return "not measured"
+    return f"≈ {duration(steps * rate[0])} on {rate[1]}"
+
+
+def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] | None:
+    """Wall seconds per training step of the finished paper runs under ``root`` with the
+    environments and agents of ``specs`` (those at ``scale``, else at the small scale), and the
+    machines they ran on; None when there are none."""
+    keys = {(spec.env, spec.agent) for spec in specs}
     for measured_scale in dict.fromkeys((scale, "small")):
         seconds = measured_steps = 0.0
         measured = []
@@ -168,6 +179,47 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
                 seconds += wall_seconds(run)
                 measured_steps += training_steps(spec)
                 measured.append(run)
-        if measured_steps and steps:
-            return f"≈ {duration(steps * seconds / measured_steps)} on {machines(measured)}"
-    return "not measured"
+        if measured_steps:
+            return seconds / measured_steps, machines(measured)
+    return None
+
+
+def plan_text(
+    figure: PaperFigure, scale: str, root: str | Path, batch_size: int | None = None
+) -> str:
+    """What ``contextrl paper run`` is about to do: per part, its trials and chunks, those already
+    finished, the training steps left, and the time they should take at the measured rate."""
+    lines = [
+        f"{figure.name} at the {scale} budget, into {figure_folder(root, figure.name, scale)}:"
+    ]
+    specs, left = [], 0
+    for part in figure.files():
+        run = RunDir(figure_folder(root, figure.name, scale) / part)
+        if (run.path / "spec.yaml").exists():
+            spec, done = run.spec(), run.finished()
+        else:
+            data = spec_data(figure, part, scale)
+            if batch_size is not None:
+                data["batch_size"] = batch_size
+            spec, done = parse_spec(data), set()
+        plan = planned(spec)
+        todo = [
+            plan.trials[i] for n, chunk in enumerate(plan.chunks) if n not in done for i in chunk
+        ]
+        steps = spec.training_steps(todo)
+        specs.append(spec)
+        left += steps
+        lines.append(
+            f"  {part}: {len(plan.trials)} trials in {len(plan.chunks)} chunk(s) of up to "
+            f"{spec.batch_size}, {len(done)} finished; {steps:,} of "
+            f"{spec.training_steps(plan.trials):,} training steps left"
+        )
+    rate = seconds_per_step(specs, scale, root)
+    if not left:
+        time_left = "nothing left to train"
+    elif rate is None:
+        time_left = "not estimated (no finished run of these agents)"
+    else:
+        time_left = f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
+    lines.append(f"  time left: {time_left}; this machine: {machine()}")
+    return "\n".join(lines)
