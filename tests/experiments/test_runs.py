@@ -200,8 +200,12 @@ def test_failed_chunk_is_recorded_and_retried_on_resume(tmp_path):
     assert failure["trials"] == [plan.trials[plan.chunks[1][0]].id]
     report(run.path)
     assert "Failures" in sections(run)
+    # the run keeps the time spent on it after every chunk: a later invocation adds to it
+    spent = run.manifest()["wall_seconds"]
+    assert spent >= sum(run.timings().values()) > 0
     _, summary = resume(run.path, progress=False)
     assert summary.ran == [1] and run.failures() == []
+    assert run.manifest()["wall_seconds"] >= spent + run.timings()["1"]
     assert "Failures" not in sections(run)
 
 

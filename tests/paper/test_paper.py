@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -151,6 +152,15 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     fresh = plan_text(figure, "tiny", paper_runs / "elsewhere", batch_size=1)
     assert f"{len(plan.trials)} chunk(s) of up to 1, 0 finished; {steps} of {steps}" in fresh
     assert "time left: not estimated (no finished run of these agents)" in fresh
+    # a full-budget run stopped part-way: the page says how far it got (its chunks on disk)
+    partial = paper_runs / "partial" / "optgap_cartpole-paper"
+    shutil.copytree(gap_run.path.parent, partial)
+    (partial / "optgap_cartpole" / "results" / "chunk-0001.parquet").unlink()
+    section = results_page(partial.parent).split("## optgap_cartpole\n")[1].split("\n## ")[0]
+    assert (
+        f"- **At full budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept"
+        in section
+    )
 
 
 def test_every_spec_states_the_decision_rule_its_check_applies():

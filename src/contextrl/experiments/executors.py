@@ -262,12 +262,14 @@ def _drive(
     ``finished(todo)`` yields it (its index and a call that returns its result or raises), report
     progress and summarise."""
     start = time.perf_counter()
+    earlier = run.manifest().get("wall_seconds", 0.0)  # spent by earlier invocations
     todo, skipped = _pending(run, plan, max_chunks)
     report = Progress(plan, todo, enabled=progress)
     ran, failed = [], []
     for chunk, fetch in finished(todo):
         ok = _settle(run, plan, chunk, fetch, save_params)
         (ran if ok else failed).append(chunk)
+        run.update_manifest(wall_seconds=earlier + time.perf_counter() - start)
         report(chunk, ok)
     remaining = sorted(set(range(len(plan.chunks))) - run.finished())
     return Summary(sorted(ran), skipped, sorted(failed), remaining, time.perf_counter() - start)

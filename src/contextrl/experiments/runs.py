@@ -3,7 +3,7 @@
 Layout of ``runs/<name>-<time>/``::
 
     spec.yaml            the resolved spec (a run is rebuilt from it on resume)
-    manifest.json        versions, seeds, plan size, start time
+    manifest.json        versions, seeds, plan size, start time, seconds spent (after each chunk)
     results/chunk-0003.parquet    evaluation rows of the trials of chunk 3
     curves/chunk-0003.parquet     their training curves
     training/chunk-0003.parquet   their return on their training contexts, and a random policy's

@@ -14,7 +14,14 @@ from contextrl.experiments.spec import parse_spec
 from contextrl.paper.catalogue import FIGURES, SCALES, PaperFigure, spec_data
 from contextrl.paper.checks import GATE, Verdict
 from contextrl.paper.plans import planned, training_steps
-from contextrl.paper.runs import estimate, finished_runs, machines, wall_seconds
+from contextrl.paper.runs import (
+    estimate,
+    finished_runs,
+    machines,
+    progress,
+    time_left,
+    wall_seconds,
+)
 
 
 def figure_rows(root: str | Path) -> list[dict[str, str]]:
@@ -130,7 +137,16 @@ def results_page(root: str | Path) -> str:
             parse_spec(spec_data(figure, p, "paper")).trains_agents for p in figure.files()
         )
         if trains and finished_runs(figure, root, "paper") is None:
-            lines.append(f"- **At {full}**: not run; {estimate(figure, 'paper', root)}.")
+            parts = progress(figure, "paper", root)
+            done, chunks = sum(p.finished for p in parts), sum(p.chunks for p in parts)
+            if done:
+                lines.append(
+                    f"- **At {full}**: under way, {done} of {chunks} chunks finished and kept "
+                    f"(`{figure.name}-paper`; the same command carries it on); "
+                    f"{time_left(parts, 'paper', root)} to go."
+                )
+            else:
+                lines.append(f"- **At {full}**: not run; {estimate(figure, 'paper', root)}.")
         lines.append("")
     lines += NOT_COVERED
     return "\n".join(lines)

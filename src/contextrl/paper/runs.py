@@ -5,6 +5,7 @@ extrapolated."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
@@ -18,7 +19,7 @@ from contextrl.analysis.report import Section, render
 from contextrl.experiments.planning import duration
 from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir, write_text
-from contextrl.experiments.spec import SpecError, parse_spec
+from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
 from contextrl.paper.catalogue import FIGURES, PaperFigure, spec_data
 from contextrl.paper.checks import Verdict
 from contextrl.paper.plans import parsed_spec, planned, training_steps
@@ -62,8 +63,13 @@ def finished_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str
 
 
 def wall_seconds(run: RunDir) -> float:
-    """Seconds ``contextrl paper run`` spent on the run (else its chunks' summed seconds)."""
-    return float(run.manifest().get("paper_wall_seconds", sum(run.timings().values())))
+    """Seconds the run took: its executors' time over every invocation up to the last finished
+    chunk (kept by the run itself, so a run stopped and carried on later counts them all), else the
+    time ``contextrl paper run`` spent on it (a protocol with its own schedule), else its chunks'
+    summed seconds."""
+    manifest = run.manifest()
+    fallback = manifest.get("paper_wall_seconds", sum(run.timings().values()))
+    return float(manifest.get("wall_seconds", fallback))
 
 
 def machine() -> str:
@@ -184,15 +190,25 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
     return None
 
 
-def plan_text(
+@dataclasses.dataclass(frozen=True)
+class PartProgress:
+    """How far one part of a figure has run: its chunks and training steps, in all and left."""
+
+    part: str
+    spec: CommonSpec
+    trials: int
+    chunks: int
+    finished: int
+    steps: int
+    steps_left: int
+
+
+def progress(
     figure: PaperFigure, scale: str, root: str | Path, batch_size: int | None = None
-) -> str:
-    """What ``contextrl paper run`` is about to do: per part, its trials and chunks, those already
-    finished, the training steps left, and the time they should take at the measured rate."""
-    lines = [
-        f"{figure.name} at the {scale} budget, into {figure_folder(root, figure.name, scale)}:"
-    ]
-    specs, left = [], 0
+) -> list[PartProgress]:
+    """Each part's progress under ``root``: from its run's own spec and finished chunks, else (not
+    started) from the catalogue's spec with ``batch_size`` trials per chunk."""
+    parts = []
     for part in figure.files():
         run = RunDir(figure_folder(root, figure.name, scale) / part)
         if (run.path / "spec.yaml").exists():
@@ -203,23 +219,47 @@ def plan_text(
                 data["batch_size"] = batch_size
             spec, done = parse_spec(data), set()
         plan = planned(spec)
-        todo = [
-            plan.trials[i] for n, chunk in enumerate(plan.chunks) if n not in done for i in chunk
-        ]
-        steps = spec.training_steps(todo)
-        specs.append(spec)
-        left += steps
-        lines.append(
-            f"  {part}: {len(plan.trials)} trials in {len(plan.chunks)} chunk(s) of up to "
-            f"{spec.batch_size}, {len(done)} finished; {steps:,} of "
-            f"{spec.training_steps(plan.trials):,} training steps left"
+        todo = [i for n, chunk in enumerate(plan.chunks) if n not in done for i in chunk]
+        parts.append(
+            PartProgress(
+                part,
+                spec,
+                len(plan.trials),
+                len(plan.chunks),
+                len(done),
+                spec.training_steps(plan.trials),
+                spec.training_steps([plan.trials[i] for i in todo]),
+            )
         )
-    rate = seconds_per_step(specs, scale, root)
+    return parts
+
+
+def time_left(parts: list[PartProgress], scale: str, root: str | Path) -> str:
+    """The time the parts' steps left should take at the rate finished runs of the same agents
+    were measured at."""
+    left = sum(p.steps_left for p in parts)
+    rate = seconds_per_step([p.spec for p in parts], scale, root)
     if not left:
-        time_left = "nothing left to train"
-    elif rate is None:
-        time_left = "not estimated (no finished run of these agents)"
-    else:
-        time_left = f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
-    lines.append(f"  time left: {time_left}; this machine: {machine()}")
+        return "nothing left to train"
+    if rate is None:
+        return "not estimated (no finished run of these agents)"
+    return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
+
+
+def plan_text(
+    figure: PaperFigure, scale: str, root: str | Path, batch_size: int | None = None
+) -> str:
+    """What ``contextrl paper run`` is about to do: per part, its trials and chunks, those already
+    finished, the training steps left, and the time they should take at the measured rate."""
+    lines = [
+        f"{figure.name} at the {scale} budget, into {figure_folder(root, figure.name, scale)}:"
+    ]
+    parts = progress(figure, scale, root, batch_size)
+    for p in parts:
+        lines.append(
+            f"  {p.part}: {p.trials} trials in {p.chunks} chunk(s) of up to "
+            f"{p.spec.batch_size}, {p.finished} finished; {p.steps_left:,} of {p.steps:,} "
+            "training steps left"
+        )
+    lines.append(f"  time left: {time_left(parts, scale, root)}; this machine: {machine()}")
     return "\n".join(lines)
