@@ -17,6 +17,8 @@ import yaml
 from contextrl.experiments import SpecError, parse_spec
 from contextrl.experiments.commands import add_run, spec_from_args
 from contextrl.experiments.commands import main as commands_main
+from contextrl.experiments.plan import expand
+from tests.helpers.report_tables import check_report
 
 BOUNDS = {"learning_rate": (1e-5, 1e-2), "ent_coef": (0.0, 0.05), "clip_eps": (0.1, 0.4)}
 
@@ -36,13 +38,13 @@ def test_hpo_search_bounds_are_checked_before_anything_runs():
 
 
 def test_fields_hpo_does_not_use_are_refused_not_ignored():
-    with pytest.raises(SpecError, match=r"seeds: the hpo protocol trains a population .*seeds=5"):
-        parse_spec({"protocol": "hpo", "seeds": 5})
     with pytest.raises(
         SpecError, match="batch_size: the hpo protocol trains each member on its own"
     ):
         parse_spec({"protocol": "hpo", "batch_size": 4})
-    assert parse_spec({"protocol": "hpo", "seeds": 3, "bootstrap_reps": 500}).bootstrap_reps == 500
+    assert parse_spec({"protocol": "hpo", "bootstrap_reps": 500}).bootstrap_reps == 500
+    several = parse_spec({"protocol": "hpo", "seeds": 3, "population": 2, "rounds": 2})
+    assert several.training_steps(expand(several).trials) == 3 * 2 * 2 * 20_000  # 3 PB2 runs
 
 
 def test_each_round_trains_with_the_rate_pb2_set_unless_annealing_per_round_is_asked():
@@ -128,17 +130,17 @@ def test_members_with_other_values_share_one_compiled_round(tmp_path):
     scope="module"
 )  # the suite's costliest setup: made once (make test: --dist loadfile)
 def pb2_runs(tmp_path_factory):
-    """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps. Ray's
-    workers inherit the suite's JAX compilation cache (conftest.py), so the second run loads the
-    programs the first compiled. The first run shows its progress; what it printed (from Python) is
-    kept in terminal.txt beside it."""
+    """The same tiny PB2 run twice with --seed 7: two members, three rounds of 256 steps; the second
+    with --seeds 2 (a second search from base seed 8). Ray's workers inherit the suite's JAX
+    compilation cache (conftest.py), so the second run loads the programs the first compiled. The
+    first run shows its progress; what it printed (from Python) is kept in terminal.txt beside it."""
     pytest.importorskip("ray")
     runs = []
     for name in ("first", "second"):
         out = tmp_path_factory.mktemp("hpo") / name
         argv = ["run", "hpo", "--env", "CartPole", "--agent", "ppo", "--seed", "7"]
         argv += ["--vary", "length=uniform:0.3:0.7", "--out", str(out)]
-        argv += [] if name == "first" else ["--quiet"]
+        argv += [] if name == "first" else ["--quiet", "--seeds", "2"]
         argv += ["--agent-option", "num_steps=32", "--agent-option", "hidden_sizes=[8]"]
         argv += ["--set", "population=2", "--set", "rounds=3", "--set", "steps_per_round=256"]
         argv += ["--set", "num_train_contexts=4", "--set", "num_test_contexts=5"]
@@ -200,6 +202,7 @@ def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_
 
 
 def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):
+    """The first PB2 run does not depend on how many follow it; the second search is another one."""
     first, second = pb2_runs
     pd.testing.assert_frame_equal(schedule(first), schedule(second))
     assert (first / "best.yaml").read_text() == (second / "best.yaml").read_text()
@@ -208,6 +211,17 @@ def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):
         pd.read_parquet(first / "results" / "chunk-0000.parquet")[columns],
         pd.read_parquet(second / "results" / "chunk-0000.parquet")[columns],
     )
+    other = pd.read_parquet(second / "curves" / "chunk-0001.parquet")
+    assert sorted(set(other["trial"])) == ["member-0-s1", "member-1-s1"]
+    assert set(other["seed"]) == {1}
+    names = [f"hp.{name}" for name in BOUNDS]
+    assert not np.allclose(other[names].to_numpy(), schedule(second)[names].to_numpy())
+    results = pd.read_parquet(second / "results" / "chunk-0001.parquet")
+    assert set(results["trial"]) == {"best-s1"} and set(results["seed"]) == {1}
+    assert (second / "best-s1.yaml").exists()
+    html = (second / "report.html").read_text()
+    assert "2 PB2 runs (base seeds 7 to 8), each a population of 2 members" in html
+    assert check_report(second) > 0  # a best-configuration row per run, equal to the results
 
 
 def test_pb2_changes_hyperparameters_between_rounds(pb2_runs):

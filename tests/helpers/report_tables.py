@@ -209,8 +209,10 @@ def _check_regions(rows: list[dict], results: pd.DataFrame) -> int:
 
 
 def _check_best(rows: list[dict], results: pd.DataFrame) -> int:
-    for r in rows:
-        assert r["best"] == shown(results[f"hp.{r['hyper-parameter']}"].iloc[0])
+    for r in rows:  # one PB2 run (no run column), else a row per run and hyper-parameter
+        mine = results[results["seed"] == int(r.get("PB2 run", 0))]
+        assert r["best"] == shown(mine[f"hp.{r['hyper-parameter']}"].iloc[0])
+    assert len(rows) == results["seed"].nunique() * len({c for c in results if c.startswith("hp.")})
     assert {r["hyper-parameter"] for r in rows} == {
         c.removeprefix("hp.") for c in results if c.startswith("hp.")
     }
@@ -232,7 +234,7 @@ def _check_tabular(rows: list[dict], results: pd.DataFrame) -> int:
 
 
 def _check_progress(rows: list[dict], results: pd.DataFrame) -> int:
-    """The progress row: trials (cMDPs for the tabular protocol) finished; hpo's one PB2 run."""
+    """The progress row: trials (cMDPs for the tabular protocol) finished; hpo's PB2 runs."""
     (progress,) = rows
     if "trials finished" in progress:
         assert progress["trials finished"] == str(results["trial"].nunique())
@@ -241,7 +243,7 @@ def _check_progress(rows: list[dict], results: pd.DataFrame) -> int:
     if "cMDPs" in progress:
         assert progress["cMDPs"] == str(results["trial"].nunique())
         return 1
-    assert progress["finished"] == "True"  # hpo: population and rounds are the spec's
+    assert progress["runs finished"] == str(results["seed"].nunique())  # hpo: a seed per run
     return 1
 
 

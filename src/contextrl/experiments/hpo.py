@@ -8,7 +8,10 @@ worst members by copies of the best with hyper-parameters chosen by a time-varyi
 compiled on a JAX environment and through the shared host collector on a host one.
 The run keeps each member's hyper-parameter schedule, writes ``best.yaml`` (the best member's final
 agent options, for ``contextrl run ... --agent-config best.yaml``) and evaluates the best member on the
-test contexts. Ray runs locally by default, or on a cluster (``--address``).
+test contexts. ``seeds`` runs PB2 that many times from base seeds ``seed``, ``seed + 1``, ... on the
+same contexts (each run a chunk: written, resumed and counted as one seed by the statistics, so a claim
+about what PB2 finds rests on several searches); runs after the first write ``best-s1.yaml``, ...
+Ray runs locally by default, or on a cluster (``--address``).
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import score_matrices
 from contextrl.compile_cache import use_compilation_cache
-from contextrl.experiments.plan import TEST_KEY, train_and_test_sets
+from contextrl.experiments.plan import TEST_KEY, Trial, train_and_test_sets
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
@@ -81,14 +84,13 @@ class HPOSpec(CommonSpec):
     steps_per_round: int = 20_000
     # Each round trains with the rate PB2 set for it; true: PPO anneals it to 0 within every round.
     anneal_per_round: bool = False
+    seeds: int = 1  # PB2 runs, one after another (each a population)
+    batch_size: int = 1  # one PB2 run per chunk
 
-    unused_fields = {
-        "seeds": "trains a population from one base seed (set population and seed)",
-        "batch_size": "trains each member on its own Ray worker",
-    }
+    unused_fields = {"batch_size": "trains each member on its own Ray worker"}
 
     def training_steps(self, trials) -> int:
-        return self.population * self.rounds * self.steps_per_round
+        return len(trials) * self.population * self.rounds * self.steps_per_round
 
     def validate(self) -> None:
         super().validate()
@@ -184,7 +186,7 @@ def _trainable(config: dict) -> None:
     train = _round_trainer(spec, env, agent_config, train_set)
     returns = _evaluator(spec, env, agent_config, train_set)
     init_key, key = jax.random.split(
-        jax.random.fold_in(jax.random.key(spec.seed), config["member"])
+        jax.random.fold_in(jax.random.key(spec.seed + config["run"]), config["member"])
     )
     params, round_index = None, 0
     checkpoint = tune.get_checkpoint()
@@ -334,8 +336,14 @@ def seeded_pb2(seed: int, **options):
     return SeededPB2()
 
 
-def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbose: bool):
-    """Run PB2; return the schedule (one row per member and round) and the best member's result.
+def _suffix(run: int) -> str:
+    """What names the ``run``-th PB2 run's members and files: nothing for the first."""
+    return f"-s{run}" if run else ""
+
+
+def _tune(spec: HPOSpec, run: int, path: Path, address: str | None, progress: bool, verbose: bool):
+    """Run PB2 from base seed ``spec.seed + run``; return the schedule (one row per member and
+    round) and the best member's result.
 
     Ray's and Tune's own output goes to ``ray/ray.log`` in the run; ``verbose`` shows it (and Tune's
     status tables) on the terminal instead."""
@@ -354,10 +362,11 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
             member = trial.config["member"]
             schedule_rows.append(
                 {
-                    "trial": f"member-{member}",
+                    "trial": f"member-{member}{_suffix(run)}",
                     "kind": "pb2",
                     "variant": spec.variants[0],
-                    "seed": member,
+                    "seed": run,
+                    "member": member,
                     "step": int(result["env_steps"]),
                     "episode_return": float(result["return"]),
                     **{f"hp.{name}": float(result[f"hp/{name}"]) for name in bounds},
@@ -365,14 +374,15 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
             )
             if progress:
                 print(
-                    f"hpo: member {member}, round {result['training_iteration']}/{spec.rounds}: "
+                    f"hpo: {f'run {run + 1}/{spec.seeds}, ' if spec.seeds > 1 else ''}member "
+                    f"{member}, round {result['training_iteration']}/{spec.rounds}: "
                     f"return {float(result['return']):.4g}",
                     file=sys.stderr,
                     flush=True,
                 )
 
     scheduler = seeded_pb2(
-        spec.seed,
+        spec.seed + run,
         time_attr="training_iteration",
         perturbation_interval=1,
         hyperparam_bounds={name: list(ends) for name, ends in bounds.items()},
@@ -388,19 +398,20 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
             tune.with_resources(_trainable, {"cpu": 1}),
             param_space={
                 "spec": spec_to_dict(spec),
+                "run": run,
                 "member": tune.grid_search(list(range(spec.population))),
                 **{name: tune.uniform(low, high) for name, (low, high) in bounds.items()},
             },
             tune_config=tune.TuneConfig(
                 scheduler=scheduler,
-                search_alg=BasicVariantGenerator(random_state=spec.seed),
+                search_alg=BasicVariantGenerator(random_state=spec.seed + run),
                 metric="return",
                 mode="max",
                 num_samples=1,  # the grid over members makes the population
                 reuse_actors=True,  # a member restarted each round keeps its process
             ),
             run_config=tune.RunConfig(
-                name="pb2",
+                name=f"pb2{_suffix(run)}",
                 storage_path=str((path / "ray").resolve()),
                 stop={"training_iteration": spec.rounds},
                 verbose=1 if verbose else 0,  # else the Schedule callback prints a line per round
@@ -411,22 +422,23 @@ def _tune(spec: HPOSpec, path: Path, address: str | None, progress: bool, verbos
     errors = [str(error) for error in grid.errors]
     if errors:
         raise RuntimeError(f"PB2 members failed: {errors[0]}")
-    schedule = pd.DataFrame(schedule_rows).sort_values(["seed", "step"], ignore_index=True)
+    schedule = pd.DataFrame(schedule_rows).sort_values(["member", "step"], ignore_index=True)
     best = grid.get_best_result(metric="return", mode="max", scope="last")
     with best.checkpoint.as_directory() as folder:
         params = load_checkpoint(Path(folder) / "params.npz")
     return schedule, {"config": best.config, "params": params}
 
 
-def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The best member on the test contexts, and on its training contexts next to a random policy."""
+def _evaluate_best(spec: HPOSpec, plan, run: int, best: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The ``run``-th search's best member on the test contexts, and on its training contexts next
+    to a random policy."""
     env = spec.make_env()
     train, test = plan.sets["train"].contexts, plan.sets["test"].contexts
     hyper = {name: best["config"][name] for name in spec.bounds()}
     config = spec._config(hyper)
     returns_of = _evaluator(spec, env, config, train)
     random_returns_of = _evaluator(spec, env, None, train, agent="random")
-    key = jax.random.fold_in(jax.random.key(spec.seed), TEST_KEY)
+    key = jax.random.fold_in(jax.random.key(spec.seed + run), TEST_KEY)
     returns = returns_of(best["params"], test, key)
     own = jax.tree_util.tree_map(lambda leaf: leaf[:16], train)
     trained = float(returns_of(best["params"], own, key).mean())
@@ -434,10 +446,10 @@ def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.Da
     space = env.context_space
     evaluations = pd.DataFrame(
         {
-            "trial": "best",
+            "trial": f"best{_suffix(run)}",
             "kind": "best",
             "variant": spec.variants[0],
-            "seed": 0,
+            "seed": run,
             "test_set": "test",
             "context_index": np.arange(len(returns)),
             **{f"ctx.{n}": np.asarray(getattr(test, n)) for n in space.names},
@@ -447,10 +459,10 @@ def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.Da
     )
     training = pd.DataFrame(
         {
-            "trial": ["best"],
+            "trial": [f"best{_suffix(run)}"],
             "kind": ["best"],
             "variant": [spec.variants[0]],
-            "seed": [0],
+            "seed": [run],
             "train_return": [trained],
             "random_return": [random],
         }
@@ -460,22 +472,42 @@ def _evaluate_best(spec: HPOSpec, plan, best: dict) -> tuple[pd.DataFrame, pd.Da
 
 def _sections(spec: HPOSpec, plan, cells: pd.DataFrame, curves: pd.DataFrame) -> list[Section]:
     bounds = spec.bounds()
-    best = {name: float(cells[f"hp.{name}"].iloc[0]) for name in bounds}
+    found = cells.dropna(subset=["return"]).groupby("seed").first()  # per PB2 run, its best
+    several = spec.seeds > 1
     rows = [
-        {"hyper-parameter": name, "best": value, "low": low, "high": high}
-        for (name, value), (low, high) in zip(best.items(), bounds.values(), strict=True)
+        {
+            **({"PB2 run": int(run)} if several else {}),
+            "hyper-parameter": name,
+            "best": float(row[f"hp.{name}"]),
+            "low": low,
+            "high": high,
+        }
+        for run, row in found.iterrows()
+        for name, (low, high) in bounds.items()
     ]
-    (scores,) = score_matrices(cells).values()  # the best member: one seed × the test contexts
+    (scores,) = score_matrices(cells).values()  # the best members: a seed per PB2 run × contexts
     means = np.ma.compressed(metrics.context_means(scores.matrix))
+    searches = (
+        f"{spec.seeds} PB2 runs on the same contexts, from base seeds {spec.seed} to "
+        f"{spec.seed + spec.seeds - 1}; in each, "
+        if several
+        else ""
+    )
+    later = f" (later runs': best-s1.yaml to best-s{spec.seeds - 1}.yaml)" if several else ""
+    per_run = cells.groupby("seed")["return"].mean()
     text = [
-        f"PB2 on Ray Tune: {spec.population} {spec.agent} agents ({spec.variants[0]}) trained on "
-        f"{spec.num_train_contexts} contexts for {spec.rounds} rounds of {spec.steps_per_round} "
-        "steps; after each round the worst members take the parameters of the best and new "
-        "hyper-parameters from PB2's bandit. The best member's final configuration is in "
-        f"{BEST_FILE} (use it with: contextrl run PROTOCOL --agent-config {BEST_FILE}).",
-        f"Best member on {len(means)} test contexts ({spec.eval_episodes} episodes each): mean "
-        f"return {metrics.aggregate_mean(scores.matrix):.4g}, worst context {means.min():.4g}, "
-        f"best {means.max():.4g}.",
+        f"PB2 on Ray Tune: {searches}{spec.population} {spec.agent} agents ({spec.variants[0]}) "
+        f"trained on {spec.num_train_contexts} contexts for {spec.rounds} rounds of "
+        f"{spec.steps_per_round} steps; after each round the worst members take the parameters of "
+        "the best and new hyper-parameters from PB2's bandit. The best member's final "
+        f"configuration is in {BEST_FILE}{later} (use it with: contextrl run PROTOCOL "
+        f"--agent-config {BEST_FILE}).",
+        f"Best member{'s' if several else ''} on {len(means)} test contexts "
+        f"({spec.eval_episodes} episodes each): mean return "
+        f"{metrics.aggregate_mean(scores.matrix):.4g}, worst context {means.min():.4g}, best "
+        f"{means.max():.4g}"
+        + ("; per PB2 run: " + ", ".join(f"{value:.4g}" for value in per_run) if several else "")
+        + ".",
     ]
     figures = []
     if not curves.empty:
@@ -510,42 +542,59 @@ def _sections(spec: HPOSpec, plan, cells: pd.DataFrame, curves: pd.DataFrame) ->
 
 
 def _expand(spec: HPOSpec) -> tuple[dict, list]:
-    """The training and test sets; the trials are PB2's members, which Ray Tune runs (_execute)."""
-    return train_and_test_sets(spec), []
+    """The training and test sets, and a trial per PB2 run: its best member (the members
+    themselves are Ray Tune's trials, run by _execute)."""
+    trials = [
+        Trial(f"best{_suffix(run)}", "best", spec.variants[0], run, "train", "test")
+        for run in range(spec.seeds)
+    ]
+    return train_and_test_sets(spec), trials
 
 
 def _execute(spec: HPOSpec, run, plan, *, executor, address, max_chunks, progress, verbose):
-    """Run PB2 on Ray (here, or on the cluster at ``address``) unless the run is finished."""
-    if run.finished():
-        return Summary([], [0], [], [], 0.0)
+    """Run each unfinished PB2 search on Ray (here, or on the cluster at ``address``), one chunk
+    each: its schedule, best configuration and best member's test returns."""
     start = time.perf_counter()
-    schedule, best = _tune(spec, run.path, address, progress, verbose)
-    training, evaluations = _evaluate_best(spec, plan, best)
-    hyper = {name: float(best["config"][name]) for name in spec.bounds()}
-    best_options = {**spec.agent_options, **hyper}
-    write_text(run.path / BEST_FILE, yaml.safe_dump(best_options, sort_keys=True))
-    write_parquet(run.path / "curves" / "chunk-0000.parquet", schedule)
-    write_parquet(run.path / "training" / "chunk-0000.parquet", training)
-    seconds = time.perf_counter() - start
-    run.record_timing(0, seconds)
-    write_parquet(run.result_path(0), evaluations)
-    if progress:
-        print(f"best configuration: {run.path / BEST_FILE}", flush=True)
-    return Summary([0], [], [], [], seconds)
+    earlier = run.manifest().get("wall_seconds", 0.0)  # spent by earlier invocations
+    skipped = sorted(run.finished())
+    todo = [k for k in range(len(plan.chunks)) if k not in skipped][:max_chunks]
+    for k in todo:
+        search_start = time.perf_counter()
+        schedule, best = _tune(spec, k, run.path, address, progress, verbose)
+        training, evaluations = _evaluate_best(spec, plan, k, best)
+        hyper = {name: float(best["config"][name]) for name in spec.bounds()}
+        best_file = run.path / f"best{_suffix(k)}.yaml"
+        write_text(best_file, yaml.safe_dump({**spec.agent_options, **hyper}, sort_keys=True))
+        write_parquet(run.path / "curves" / f"chunk-{k:04d}.parquet", schedule)
+        write_parquet(run.path / "training" / f"chunk-{k:04d}.parquet", training)
+        run.record_timing(k, time.perf_counter() - search_start)
+        write_parquet(run.result_path(k), evaluations)
+        run.update_manifest(wall_seconds=earlier + time.perf_counter() - start)
+        if progress:
+            print(f"best configuration: {best_file}", flush=True)
+    remaining = sorted(set(range(len(plan.chunks))) - run.finished())
+    return Summary(todo, skipped, [], remaining, time.perf_counter() - start)
 
 
 def _runs_text(spec: HPOSpec) -> str:
-    return (
+    population = (
         f"a population of {spec.population} members, {spec.rounds} rounds of "
-        f"{spec.steps_per_round} steps each (base seed {spec.seed}); the best member is evaluated"
+        f"{spec.steps_per_round} steps each"
     )
+    if spec.seeds > 1:
+        return (
+            f"{spec.seeds} PB2 runs (base seeds {spec.seed} to {spec.seed + spec.seeds - 1}), each "
+            f"{population}; each run's best member is evaluated"
+        )
+    return f"{population} (base seed {spec.seed}); the best member is evaluated"
 
 
 def _progress_row(spec: HPOSpec, run, plan, results, failures) -> dict:
     return {
+        "PB2 runs": len(plan.chunks),
+        "runs finished": len(run.finished()),
         "population": spec.population,
         "rounds": spec.rounds,
-        "finished": bool(run.finished()),
         "seconds": round(sum(run.timings().values()), 1),
     }
 

@@ -226,7 +226,7 @@ FIGURES = {
             PaperFigure(
                 f"pb2_{env}",
                 better_check("hidden", "concat_all"),
-                {"population": 4, "rounds": 4, "steps_per_round": 10000},
+                {"population": 4, "rounds": 4, "steps_per_round": 10000, "seeds": 3},
                 parts=(f"pb2_{env}_hidden", f"pb2_{env}_visible"),
             )
             for env in ("acrobot", "lunarlander", "pendulum")

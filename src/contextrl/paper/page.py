@@ -215,10 +215,13 @@ def _budget(spec) -> str:
     trials = planned(spec).trials
     per_agent = {spec.training_steps([t]) for t in trials}
     each = f"{per_agent.pop():,} steps each" if len(per_agent) == 1 else "steps differ"
-    parts = [
-        f"{len(trials)} agents × {each} ({training_steps(spec):,} in all)",
-        f"seeds {spec.seeds}",
-    ]
+    if spec.protocol == "hpo":  # a trial is one PB2 search of a population
+        members = spec.rounds * spec.steps_per_round
+        each = f"{spec.population} agents × {members:,} steps each"
+        agents = f"{len(trials)} PB2 runs × {each}"
+    else:
+        agents = f"{len(trials)} agents × {each}"
+    parts = [f"{agents} ({training_steps(spec):,} in all)", f"seeds {spec.seeds}"]
     for field in ("num_contexts", "num_train_contexts", "population", "rounds"):
         if hasattr(spec, field) and field not in spec.unused_fields:
             parts.append(f"{field.replace('num_', '').replace('_', ' ')} {getattr(spec, field)}")
