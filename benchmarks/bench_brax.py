@@ -35,6 +35,7 @@ import time
 
 import jax
 import jax.numpy as jnp
+from _contextual import contextual_rollout
 
 import contextrl as crl
 from contextrl.envs import brax as family
@@ -74,27 +75,6 @@ def reaching_contexts(env, n: int, key):
         "target_distance": crl.Uniform(0.5 * distance, 1.5 * distance),
     }
     return crl.sample(env, {name: spec[name] for name in spec if name in features}, n, key)
-
-
-def contextual_rollout(env, n: int, steps: int, compiler_options=None):
-    """jit((key, contexts) → checksum): ``n`` copies through ``ContextualEnv`` for ``steps`` random steps."""
-
-    def run(key, contexts):
-        contextual = crl.with_contexts(env, contexts)
-        reset_key, key = jax.random.split(key)
-        state, timestep = contextual.reset_copies(reset_key, n)
-
-        def body(carry, action_key):
-            state, total = carry
-            actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, n))
-            state, timestep = contextual.step_copies(state, actions)
-            return (state, total + jnp.sum(timestep.obs)), None
-
-        start = (state, jnp.sum(timestep.obs))
-        (_, total), _ = jax.lax.scan(body, start, jax.random.split(key, steps))
-        return total
-
-    return jax.jit(run, compiler_options=compiler_options)
 
 
 def brax_rollout(env, n: int, steps: int):

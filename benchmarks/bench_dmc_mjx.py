@@ -30,8 +30,8 @@ xla_cpu_workaround()
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _contextual import contextual_rollout  # noqa: E402
 
 import contextrl as crl  # noqa: E402
 
@@ -57,28 +57,6 @@ def contexts_for(env, n: int, key):
     return crl.sample(env, spec, n, key)
 
 
-def rollout(env, n: int, steps: int):
-    """jit((key, contexts) → checksum): ``n`` copies through ``ContextualEnv`` for ``steps`` steps."""
-
-    def run(key, contexts):
-        contextual = crl.with_contexts(env, contexts)
-        reset_key, key = jax.random.split(key)
-        state, timestep = contextual.reset_copies(reset_key, n)
-
-        def body(carry, action_key):
-            state, total = carry
-            actions = jax.vmap(env.action_space.sample)(jax.random.split(action_key, n))
-            state, timestep = contextual.step_copies(state, actions)
-            return (state, total + jnp.sum(timestep.obs)), None
-
-        (_, total), _ = jax.lax.scan(
-            body, (state, jnp.sum(timestep.obs)), jax.random.split(key, steps)
-        )
-        return total
-
-    return jax.jit(run)
-
-
 def timed(function) -> float:
     start = time.perf_counter()
     function()
@@ -88,7 +66,7 @@ def timed(function) -> float:
 def mjx_rate(env, n: int, seconds: float, rate_guess: float | None) -> tuple[float, float, int]:
     """(compile seconds, steps/s best of 2 calls, steps per call)."""
     steps = 10 if rate_guess is None else int(max(2, min(200, rate_guess * seconds / n)))
-    run = rollout(env, n, steps)
+    run = contextual_rollout(env, n, steps)
     contexts = contexts_for(env, n, jax.random.key(1))
     before = len(compilations)
     run(jax.random.key(0), contexts).block_until_ready()

@@ -34,7 +34,8 @@ from contextrl.agents import ppo  # noqa: E402
 from contextrl.core import contextual  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from bench_brax import best_rates, brax_rollout, contextual_rollout  # noqa: E402
+from _contextual import contextual_rollout  # noqa: E402
+from bench_brax import best_rates, brax_rollout  # noqa: E402
 from learning import BRAX_PPO_SETTINGS  # noqa: E402
 
 COPIES = BRAX_PPO_SETTINGS["num_envs"]
