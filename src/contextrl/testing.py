@@ -146,18 +146,29 @@ def _effects(env: Env, steps: int):
 
 
 def check_feature_effects(
-    env: Env, key, *, num_bases: int = 4, num_keys: int = 4, steps: int = 200
+    env: Env,
+    key,
+    *,
+    num_bases: int = 4,
+    num_keys: int = 4,
+    steps: int = 200,
+    bases: object | None = None,
 ) -> dict[str, dict[str, bool]]:
     """Per feature, which effects were observed; raises AssertionError on a missing or undeclared one,
     or on a value inside the feature's bounds that gives non-finite states, rewards or observations.
 
-    Each feature is moved to its bounds and midpoints, from the default context and from random ones, and
-    compared with the unchanged context along the same random trajectories.
+    Each feature is moved to its bounds and midpoints, from the default context and from random ones
+    (and from ``bases``, a batch of contexts, where given: a goal that random actions never reach
+    shows its effect from a context that starts at it), and compared with the unchanged context along
+    the same random trajectories.
     """
     space = env.context_space
     steps = min(steps, env.max_steps)
     bases_key, key = jax.random.split(key)
-    bases = default_and_random_contexts(env, num_bases, bases_key)
+    drawn = default_and_random_contexts(env, num_bases, bases_key)
+    if bases is not None:
+        drawn = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), drawn, bases)
+    bases, num_bases = drawn, len(jax.tree_util.tree_leaves(drawn)[0])
     effects = jax.jit(jax.vmap(_effects(env, steps)))
     keys = jax.random.split(key, num_keys)
     observed, problems = {}, []
@@ -237,11 +248,13 @@ def check_env(
     num_contexts: int = 8,
     steps: int | None = None,
     effect_steps: int = 200,
+    effect_bases: object | None = None,
 ) -> None:
     """Run every check on a JAX environment; raises AssertionError with what went wrong.
 
     ``steps`` is the rollout's length (default: past the time limit), ``effect_steps`` how long each
-    feature's effect is looked for (:func:`check_feature_effects`)."""
+    feature's effect is looked for and ``effect_bases`` extra contexts it is looked for from
+    (:func:`check_feature_effects`)."""
     key = jax.random.key(0) if key is None else key
     steps = env.max_steps + 5 if steps is None else steps
     contexts_key, rollout_key, effects_key = jax.random.split(key, 3)
@@ -309,4 +322,4 @@ def check_env(
     env.action_space.to_gymnasium()
     obs_space.to_gymnasium()
 
-    check_feature_effects(env, effects_key, steps=effect_steps)
+    check_feature_effects(env, effects_key, steps=effect_steps, bases=effect_bases)

@@ -81,7 +81,12 @@ def add_paper(subparsers) -> None:
         f"read (default ./{PAPER_RUNS}, else the repository's)",
     )
     parser.add_argument("--out", default="docs/paper.md", help="with page: the file (- prints)")
-    parser.add_argument("--executor", choices=list(EXECUTORS), default="local")
+    parser.add_argument(
+        "--executor",
+        choices=list(EXECUTORS),
+        help="where chunks run (default: a worker process per core for a host environment, this "
+        "process for a JAX one)",
+    )
     parser.add_argument("--address", help="with --executor ray: the cluster (default: a local Ray)")
     parser.add_argument(
         "--batch-size",

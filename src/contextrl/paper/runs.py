@@ -84,14 +84,16 @@ def run_figure(
     scale: str = "small",
     *,
     root: str | Path = PAPER_RUNS,
-    executor: str = "local",
+    executor: str | None = None,
     address: str | None = None,
     batch_size: int | None = None,
     progress: bool = True,
 ) -> tuple[Verdict, Path]:
     """Run (or finish) every part of a figure at ``scale``, then write the figure's report
     (``paper.html``: the claim, the verdict and the parts' figures); returns the verdict and it.
-    ``batch_size`` sets how many trials a new part trains in one vmapped call (a GPU takes all)."""
+    ``executor`` defaults to one worker process per core for a host environment (its simulator
+    runs one copy per process) and to this process for a JAX one; ``batch_size`` sets how many
+    trials a new part trains in one vmapped call (a GPU takes all)."""
     figure = FIGURES[name]
     folder = figure_folder(root, name, scale)
     if progress:
@@ -99,13 +101,20 @@ def run_figure(
     for part in figure.files():
         path = folder / part
         start = time.perf_counter()
-        options = {"executor": executor, "address": address, "progress": progress}
-        if (path / "spec.yaml").exists():  # finish it as its own spec.yaml says
+        resumed = (path / "spec.yaml").exists()  # then finish it as its own spec.yaml says
+        data = None if resumed else spec_data(figure, part, scale)
+        if batch_size is not None and not resumed:
+            data["batch_size"] = batch_size
+        spec = RunDir(path).spec() if resumed else parse_spec(data)
+        host = spec.trains_agents and spec.host  # the tabular protocol has no environment
+        options = {
+            "executor": executor or ("processes" if host else "local"),
+            "address": address,
+            "progress": progress,
+        }
+        if resumed:
             run, _ = run_experiment(resume=path, **options)
         else:
-            data = spec_data(figure, part, scale)
-            if batch_size is not None:
-                data["batch_size"] = batch_size
             run, _ = run_experiment(data, out=path, **options)
         spent = time.perf_counter() - start
         run.update_manifest(
