@@ -43,6 +43,8 @@ def test_fields_hpo_does_not_use_are_refused_not_ignored():
     ):
         parse_spec({"protocol": "hpo", "batch_size": 4})
     assert parse_spec({"protocol": "hpo", "bootstrap_reps": 500}).bootstrap_reps == 500
+    with pytest.raises(SpecError, match=r"seeds: 3 PB2 searches take base seeds 4294967294 to"):
+        parse_spec({"protocol": "hpo", "seeds": 3, "seed": 2**32 - 2})
     several = parse_spec({"protocol": "hpo", "seeds": 3, "population": 2, "rounds": 2})
     assert several.training_steps(expand(several).trials) == 3 * 2 * 2 * 20_000  # 3 PB2 runs
 

@@ -125,6 +125,11 @@ class HPOSpec(CommonSpec):
             )
         if self.population < 2:
             raise SpecError(f"population: PB2 needs at least 2 members, got {self.population}")
+        if self.seed + self.seeds - 1 > 2**32 - 1:
+            raise SpecError(
+                f"seeds: {self.seeds} PB2 searches take base seeds {self.seed} to "
+                f"{self.seed + self.seeds - 1}, past the largest seed 2**32 - 1; lower seed or seeds"
+            )
         if not self.agent_entry().trained:
             raise SpecError(f"hpo tunes a trained agent; {self.agent} does not learn")
         self.resolve_features("train", self.train)
