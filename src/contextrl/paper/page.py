@@ -80,8 +80,8 @@ def results_page(root: str | Path) -> str:
         "agent); on a Ray cluster it is `contextrl paper run FIGURE --scale paper --executor ray "
         "--address auto`. Figures on host simulators (Box2D, dm_control) run their chunks on one "
         "worker process per core unless told otherwise. A run stopped part-way keeps its finished "
-        "chunks: the same command carries it on. The paper's Figure 1 (CARLFetch at three target distances and three "
-        "ground frictions) is a picture, not an experiment: `contextrl render Fetch --grid "
+        "chunks: the same command carries it on. The paper's Figure 1 (CARLFetch at three target "
+        "distances and three ground frictions) is a picture, not an experiment: `contextrl render Fetch --grid "
         "target_distance=2,6,10 --grid friction=0.05,0.6,1.0` draws it (families/brax.md).",
         "",
     ]
