@@ -81,8 +81,10 @@ def _differs(a, b) -> jax.Array:
 def _effects(env: Env, steps: int):
     """A function (base, changed, key) → which effects a change of context showed along a trajectory.
 
-    The trajectory follows the base context with random actions (resetting when it ends); at every state
-    the changed context's transition, reward, termination and observation are compared with the base's.
+    The trajectory follows the base context with random actions, going back to its own start when an
+    episode ends (a fresh start at every step would put the start's search, a collision pass for
+    Quadruped and a rejection loop for Finger, inside the scanned body); at every state the changed
+    context's transition, reward, termination and observation are compared with the base's.
     Both contexts go through one vmapped computation, the same compiled code: two separately compiled
     copies of a step can round differently, and a solver that iterates to a tolerance (MJX's) can turn
     that into differences far beyond rounding.
@@ -100,9 +102,10 @@ def _effects(env: Env, steps: int):
     def effects(base, changed, key):
         start_key, run_key = jax.random.split(key)
         starts = both(env.init, start_key)(base, changed)
+        start = pick(starts, 0)
 
         def body(state, step_key):
-            action_key, transition_key, reset_key = jax.random.split(step_key, 3)
+            action_key, transition_key = jax.random.split(step_key)
             action = env.action_space.sample(action_key)
             nexts, rewards, terms = both(env.transition, transition_key, state, action)(
                 base, changed
@@ -123,18 +126,17 @@ def _effects(env: Env, steps: int):
                     finite[0] & ~finite[1],  # the changed value alone broke the physics
                 ]
             )
-            restart = env.init(reset_key, base)
             state = jax.tree_util.tree_map(
-                lambda r, s: jnp.where(terms[0], r, s), restart, pick(nexts, 0)
+                lambda r, s: jnp.where(terms[0], r, s), start, pick(nexts, 0)
             )
             return state, shown
 
-        _, shown = jax.lax.scan(body, pick(starts, 0), jax.random.split(run_key, steps))
+        _, shown = jax.lax.scan(body, start, jax.random.split(run_key, steps))
         dynamics, reward, termination, observation, diverged = jnp.any(shown, axis=0)
         return {
             "diverged": diverged,
             "start_state": _differs(
-                env.state_variables(pick(starts, 0)), env.state_variables(pick(starts, 1))
+                env.state_variables(start), env.state_variables(pick(starts, 1))
             ),
             "dynamics": dynamics,
             "reward": reward,

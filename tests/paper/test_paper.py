@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -161,6 +162,26 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
         f"- **At full budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept"
         in section
     )
+    # its general agents are trained, so the specialists to come are bounded by the 20 an episode
+    # of 20 steps can return: the intervals are already below 30, and the finished run's never
+    # exceed those bounds (the same bootstrap draws; mean, median and IQM rise with any return)
+    settled = figure.check.settled({"optgap_cartpole": RunDir(partial / "optgap_cartpole")})
+    assert settled.holds is False and settled.withheld.startswith("2 seeds, fewer than 5")
+    untrained = len(plan.chunks[1])
+    assert f"even if each of the {untrained} specialists not yet trained returned 20 " in (
+        settled.evidence
+    )
+    assert "Whatever the unfinished chunks give, its intervals would say *does not hold*" in section
+    bound, final = _differences(settled.evidence), _differences(gap.evidence)
+    assert set(final) == {"mean", "median", "IQM"} and set(bound) == set(final)
+    assert all(final[name][2] <= bound[name][2] for name in final), (final, bound)
+
+
+def _differences(evidence: str) -> dict[str, tuple[float, float, float]]:
+    """The specialists − general intervals a gap verdict states: {statistic: (point, low, high)}."""
+    stated = evidence.split("(95% CI")[0]
+    found = re.findall(r"(mean|median|IQM) (\S+) \[(\S+), (\S+)\]", stated)
+    return {name: tuple(float(v) for v in values) for name, *values in found}
 
 
 def test_every_spec_states_the_decision_rule_its_check_applies():

@@ -19,6 +19,7 @@ from contextrl.paper.runs import (
     finished_runs,
     machines,
     progress,
+    started_runs,
     time_left,
     wall_seconds,
 )
@@ -145,13 +146,30 @@ def results_page(root: str | Path) -> str:
                 lines.append(
                     f"- **At {full}**: under way, {done} of {chunks} chunks finished and kept "
                     f"(`{figure.name}-paper`; the same command carries it on); "
-                    f"{time_left(parts, 'paper', root)} to go."
+                    f"{time_left(parts, 'paper', root)} to go.{_settled(figure, root)}"
                 )
             else:
                 lines.append(f"- **At {full}**: not run; {estimate(figure, 'paper', root)}.")
         lines.append("")
     lines += NOT_COVERED
     return "\n".join(lines)
+
+
+def _settled(figure: PaperFigure, root: str | Path) -> str:
+    """What the finished chunks of a full-budget run under way already fix, if anything."""
+    runs = started_runs(figure, root, "paper")
+    verdict = figure.check.settled(runs) if runs else None
+    if verdict is None:
+        return ""
+    if verdict.withheld:
+        return (
+            f" Whatever the unfinished chunks give, its intervals would say *{_rule_word(verdict)}*"
+            f", but no verdict ({verdict.withheld}): {verdict.evidence}."
+        )
+    return (
+        f" **Already decided: the claim {verdict.word}**, whatever the unfinished chunks give: "
+        f"{verdict.evidence}."
+    )
 
 
 def _rule_word(verdict: Verdict) -> str:

@@ -48,17 +48,21 @@ def figure_folder(root: str | Path, name: str, scale: str) -> Path:
     return Path(root) / f"{name}-{scale}"
 
 
+def started_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str, RunDir] | None:
+    """The figure's runs at ``scale`` under ``root`` when every part has started (its spec)."""
+    runs = {part: RunDir(figure_folder(root, figure.name, scale) / part) for part in figure.files()}
+    if not all((run.path / "spec.yaml").exists() for run in runs.values()):
+        return None
+    return runs
+
+
 def finished_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str, RunDir] | None:
     """The figure's runs at ``scale`` under ``root`` when every part has all its results."""
-    runs = {}
-    for part in figure.files():
-        run = RunDir(figure_folder(root, figure.name, scale) / part)
-        if not (run.path / "spec.yaml").exists():
-            return None
+    runs = started_runs(figure, root, scale)
+    for run in (runs or {}).values():
         plan = planned(run.spec())
         if run.results().empty or len(run.finished()) < max(len(plan.chunks), 1):
             return None
-        runs[part] = run
     return runs
 
 
@@ -77,6 +81,15 @@ def machine() -> str:
     device = jax.devices()[0]
     cores = f"{os.cpu_count()} CPU cores"
     return cores if device.platform == "cpu" else f"one {device.device_kind} and {cores}"
+
+
+def _new_part(figure: PaperFigure, part: str, scale: str, batch_size: int | None) -> dict:
+    """The spec a part not yet started runs: the catalogue's, with ``batch_size`` trials per chunk
+    where given."""
+    data = spec_data(figure, part, scale)
+    if batch_size is not None:
+        data["batch_size"] = batch_size
+    return data
 
 
 def run_figure(
@@ -102,9 +115,7 @@ def run_figure(
         path = folder / part
         start = time.perf_counter()
         resumed = (path / "spec.yaml").exists()  # then finish it as its own spec.yaml says
-        data = None if resumed else spec_data(figure, part, scale)
-        if batch_size is not None and not resumed:
-            data["batch_size"] = batch_size
+        data = None if resumed else _new_part(figure, part, scale, batch_size)
         spec = RunDir(path).spec() if resumed else parse_spec(data)
         host = spec.trains_agents and spec.host  # the tabular protocol has no environment
         options = {
@@ -223,10 +234,7 @@ def progress(
         if (run.path / "spec.yaml").exists():
             spec, done = run.spec(), run.finished()
         else:
-            data = spec_data(figure, part, scale)
-            if batch_size is not None:
-                data["batch_size"] = batch_size
-            spec, done = parse_spec(data), set()
+            spec, done = parse_spec(_new_part(figure, part, scale, batch_size)), set()
         plan = planned(spec)
         todo = [i for n, chunk in enumerate(plan.chunks) if n not in done for i in chunk]
         parts.append(
