@@ -164,7 +164,7 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     )
     # its general agents are trained, so the specialists to come are bounded by the 20 an episode
     # of 20 steps can return: the intervals are already below 30, and the finished run's never
-    # exceed those bounds (the same bootstrap draws; mean, median and IQM rise with any return)
+    # exceed those bounds (the same bootstrap draws; mean, median and IQM never fall as a return rises)
     settled = figure.check.settled({"optgap_cartpole": RunDir(partial / "optgap_cartpole")})
     assert settled.holds is False and settled.withheld.startswith("2 seeds, fewer than 5")
     untrained = len(plan.chunks[1])
