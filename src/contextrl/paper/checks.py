@@ -226,8 +226,9 @@ def gap_check(at_least: float, finished: bool = False, most_per_step: float | No
 
     def settle(runs: Mapping[str, RunDir], gain: float) -> Verdict | None:
         (run,) = runs.values()
-        spec, cells = _cells(run)
+        spec = run.spec()
         plan, finished = planned(spec), run.finished()
+        cells = run_cells(run, plan, run.results())
         waiting = {
             plan.trials[i].id
             for c, chunk in enumerate(plan.chunks)
