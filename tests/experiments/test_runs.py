@@ -3,7 +3,13 @@
 import contextlib
 import io
 import json
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -182,6 +188,49 @@ def test_worker_processes_give_the_results_of_this_process(tmp_path, monkeypatch
     pd.testing.assert_frame_equal(
         ordered, here.results()[columns].sort_values(columns[:2], ignore_index=True)
     )
+
+
+# A parent that starts a worker as the processes executor does, prints the worker's process id and
+# waits (the worker sleeps as a long chunk would).
+ORPHAN_PARENT = """
+import concurrent.futures, multiprocessing, os, time
+from contextrl.experiments import executors
+if __name__ == "__main__":
+    pool = concurrent.futures.ProcessPoolExecutor(
+        1, mp_context=multiprocessing.get_context("spawn"),
+        initializer=executors._exit_with_parent, initargs=(os.getpid(),))
+    print(pool.submit(os.getpid).result(), flush=True)
+    pool.submit(time.sleep, 600)
+    time.sleep(600)
+"""
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie (an orphan's state until it is reaped)."""
+    stat = Path(f"/proc/{pid}/stat")
+    try:
+        return stat.read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc (Linux)")
+def test_worker_processes_end_when_their_parent_is_killed():
+    """A run killed outright cannot shut its pool down: its workers notice and end instead of
+    training their chunks for nobody."""
+    parent = subprocess.Popen(
+        [sys.executable, "-c", ORPHAN_PARENT], stdout=subprocess.PIPE, text=True
+    )
+    worker = int(parent.stdout.readline())
+    assert _running(worker)
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10 * executors.PARENT_CHECK_SECONDS
+    while _running(worker) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    if _running(worker):
+        os.kill(worker, signal.SIGKILL)
+        pytest.fail(f"worker {worker} still running after its parent was killed")
 
 
 def test_failed_chunk_is_recorded_and_retried_on_resume(tmp_path):

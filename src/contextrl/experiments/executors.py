@@ -22,6 +22,7 @@ import queue
 import re
 import socket
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -304,6 +305,23 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
+PARENT_CHECK_SECONDS = 2.0
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A worker's initializer: end the worker when the process that started it is gone.
+
+    A parent killed outright (SIGTERM, SIGKILL, a scheduler's time limit) cannot shut its pool down,
+    and its workers would otherwise train their chunks for hours with nobody left to keep them."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 def run_processes(
     run: RunDir,
     plan: Plan,
@@ -330,7 +348,12 @@ def run_processes(
                 updates = stack.enter_context(context.Manager()).Queue()
             bars = stack.enter_context(contextlib.closing(ChunkBars(plan, updates)))
             pool = stack.enter_context(
-                concurrent.futures.ProcessPoolExecutor(count, mp_context=context)
+                concurrent.futures.ProcessPoolExecutor(
+                    count,
+                    mp_context=context,
+                    initializer=_exit_with_parent,
+                    initargs=(os.getpid(),),
+                )
             )
             pending = {pool.submit(_remote_chunk, spec_data, c, updates): c for c in todo}
 
