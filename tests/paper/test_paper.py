@@ -153,6 +153,9 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     fresh = plan_text(figure, "tiny", paper_runs / "elsewhere", batch_size=1)
     assert f"{len(plan.trials)} chunk(s) of up to 1, 0 finished; {steps} of {steps}" in fresh
     assert "time left: not estimated (no finished run of these agents)" in fresh
+    # a host environment trains a chunk's trials one after another: each its own chunk by default
+    walker = plan_text(FIGURES["visibility_dmcwalker"], "paper", paper_runs / "elsewhere")
+    assert "15 trials in 15 chunk(s) of up to 1, 0 finished" in walker, walker
     # a full-budget run stopped part-way: the page says how far it got (its chunks on disk)
     partial = paper_runs / "partial" / "optgap_cartpole-paper"
     shutil.copytree(gap_run.path.parent, partial)

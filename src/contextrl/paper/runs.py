@@ -85,8 +85,13 @@ def machine() -> str:
 
 def _new_part(figure: PaperFigure, part: str, scale: str, batch_size: int | None) -> dict:
     """The spec a part not yet started runs: the catalogue's, with ``batch_size`` trials per chunk
-    where given."""
+    where given. A host environment's trials train one after another whatever the chunk, so there
+    each trial is its own chunk unless the spec or ``batch_size`` says otherwise: a run stopped
+    part-way loses at most the trials under way, and every worker process gets one."""
     data = spec_data(figure, part, scale)
+    if batch_size is None and "batch_size" not in data:
+        spec = parse_spec(data)
+        batch_size = 1 if spec.trains_agents and spec.host else None
     if batch_size is not None:
         data["batch_size"] = batch_size
     return data
