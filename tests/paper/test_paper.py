@@ -175,6 +175,15 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
         settled.evidence
     )
     assert "Whatever the unfinished chunks give, its intervals would say *does not hold*" in section
+    # the same at the small budget, where nothing has finished: it replaces "Not run yet"
+    small = paper_runs / "partial-small" / "optgap_cartpole-small"
+    shutil.copytree(partial, small)
+    section = results_page(small.parent).split("## optgap_cartpole\n")[1].split("\n## ")[0]
+    assert (
+        f"- **At the small budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept "
+        "(`optgap_cartpole-small`; the same command carries it on); time left: ≈ "
+    ) in section
+    assert "Not run yet" not in section
     bound, final = _differences(settled.evidence), _differences(gap.evidence)
     assert set(final) == {"mean", "median", "IQM"} and set(bound) == set(final)
     assert all(final[name][2] <= bound[name][2] for name in final), (final, bound)

@@ -131,28 +131,39 @@ def results_page(root: str | Path) -> str:
                     f"budget{withheld}; its intervals alone would say *{_rule_word(verdict)}*. "
                     f"{verdict.evidence}."
                 )
-        if not ran:
-            lines.append(
-                f"- Not run yet. Estimated time at the small budget: "
-                f"{estimate(figure, 'small', root)}."
-            )
         trains = any(
             parse_spec(spec_data(figure, p, "paper")).trains_agents for p in figure.files()
         )
+        if not ran:
+            small = trains and _under_way(figure, root, "small")
+            lines.append(
+                f"- **At the small budget**: {small}."
+                if small
+                else f"- Not run yet. Estimated time at the small budget: "
+                f"{estimate(figure, 'small', root)}."
+            )
         if trains and finished_runs(figure, root, "paper") is None:
-            parts = progress(figure, "paper", root)
-            done, chunks = sum(p.finished for p in parts), sum(p.chunks for p in parts)
-            if done:
-                lines.append(
-                    f"- **At {full}**: under way, {done} of {chunks} chunks finished and kept "
-                    f"(`{figure.name}-paper`; the same command carries it on); "
-                    f"{time_left(parts, 'paper', root)} to go.{_settled(figure, root)}"
-                )
-            else:
-                lines.append(f"- **At {full}**: not run; {estimate(figure, 'paper', root)}.")
+            paper = _under_way(figure, root, "paper")
+            lines.append(
+                f"- **At {full}**: {paper}.{_settled(figure, root)}"
+                if paper
+                else f"- **At {full}**: not run; {estimate(figure, 'paper', root)}."
+            )
         lines.append("")
     lines += NOT_COVERED
     return "\n".join(lines)
+
+
+def _under_way(figure: PaperFigure, root: str | Path, scale: str) -> str:
+    """How far a run at ``scale`` stopped part-way got ("" when no chunk is finished)."""
+    parts = progress(figure, scale, root)
+    done, chunks = sum(p.finished for p in parts), sum(p.chunks for p in parts)
+    if not done:
+        return ""
+    return (
+        f"under way, {done} of {chunks} chunks finished and kept (`{figure.name}-{scale}`; the "
+        f"same command carries it on); time left: {time_left(figure, parts, scale, root)}"
+    )
 
 
 def _settled(figure: PaperFigure, root: str | Path) -> str:

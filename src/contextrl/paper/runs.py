@@ -256,16 +256,22 @@ def progress(
     return parts
 
 
-def time_left(parts: list[PartProgress], scale: str, root: str | Path) -> str:
+def time_left(figure: PaperFigure, parts: list[PartProgress], scale: str, root: str | Path) -> str:
     """The time the parts' steps left should take at the rate finished runs of the same agents
-    were measured at."""
+    were measured at, else at the pace of the figure's own finished chunks."""
     left = sum(p.steps_left for p in parts)
-    rate = seconds_per_step([p.spec for p in parts], scale, root)
     if not left:
         return "nothing left to train"
-    if rate is None:
+    rate = seconds_per_step([p.spec for p in parts], scale, root)
+    if rate is not None:
+        return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
+    done = sum(p.steps - p.steps_left for p in parts)
+    folder = figure_folder(root, figure.name, scale)
+    runs = [RunDir(folder / p.part) for p in parts if p.finished]
+    if not done or not runs:
         return "not estimated (no finished run of these agents)"
-    return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
+    seconds = sum(wall_seconds(run) for run in runs)
+    return f"≈ {duration(left * seconds / done)} at the pace of its finished chunks"
 
 
 def plan_text(
@@ -283,5 +289,5 @@ def plan_text(
             f"{p.spec.batch_size}, {p.finished} finished; {p.steps_left:,} of {p.steps:,} "
             "training steps left"
         )
-    lines.append(f"  time left: {time_left(parts, scale, root)}; this machine: {machine()}")
+    lines.append(f"  time left: {time_left(figure, parts, scale, root)}; this machine: {machine()}")
     return "\n".join(lines)
