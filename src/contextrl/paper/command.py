@@ -91,7 +91,8 @@ def add_paper(subparsers) -> None:
     parser.add_argument(
         "--batch-size",
         type=count,
-        help="with run: trials trained in one vmapped call (the spec's; a GPU takes them all)",
+        help="with run: trials per chunk, trained in one vmapped call on a JAX environment (the "
+        "spec's; a GPU takes them all) and one after another on a host one (default 1)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(handler=paper_command)
