@@ -5,6 +5,7 @@ the suite's budget); docs/families/dmc.md quotes what it printed.
     python -m tests.helpers.mjx_episodes DmcPointMass     # some
 
     python -m tests.helpers.mjx_episodes --same-starts DmcQuadruped
+    python -m tests.helpers.mjx_episodes DmcQuadruped --seed 10   # other draws, default context
 
 The suite checks that 10 steps from the same state agree within float32 tolerances
 (tests/envs/dmc/test_dmc_mjx.py). Over 1,000 steps the two simulators' trajectories part (float32
@@ -71,8 +72,9 @@ def compare(label: str, ours: np.ndarray, theirs: np.ndarray) -> None:
     )
 
 
-def random_row(host, env, label: str, values: dict) -> None:
-    """Uniform random actions on both simulators at the context ``values``."""
+def random_row(host, env, label: str, values: dict, seed: int = 0) -> None:
+    """Uniform random actions on both simulators at the context ``values`` (MJX's keys from
+    ``seed``, dm_control's generator from ``seed + 1``)."""
     context = env.context(**values)
 
     def act(params, obs, ctx, key):
@@ -80,20 +82,27 @@ def random_row(host, env, label: str, values: dict) -> None:
 
     start = time.perf_counter()
     run = jax.jit(lambda key: evaluate_episodes(act, None, env, context, EPISODES, key))
-    ours = np.asarray(run(jax.random.key(0))).ravel()
+    ours = np.asarray(run(jax.random.key(seed))).ravel()
     mjx_seconds = time.perf_counter() - start
     sample = jax.jit(env.action_space.sample)
     theirs = host_returns(
-        host, host.context(**values), lambda obs, key: sample(key), EPISODES, env.max_steps, 1
+        host,
+        host.context(**values),
+        lambda obs, key: sample(key),
+        EPISODES,
+        env.max_steps,
+        seed + 1,
     )
     compare(f"random, {label} ({mjx_seconds:.0f} s)", ours, theirs)
 
 
-def random_actions(name: str) -> None:
+def random_actions(name: str, seed: int = 0, changed_too: bool = True) -> None:
     host, env = crl.make(name), crl.make(name, backend="mjx")
     changed = {k: v for k, v in CHANGED.items() if k in env.context_space.names}
-    random_row(host, env, "default", {})
-    random_row(host, env, ", ".join(f"{k} {v}" for k, v in changed.items()), changed)
+    random_row(host, env, "default", {}, seed)
+    if changed_too:
+        label = ", ".join(f"{k} {v}" for k, v in changed.items())
+        random_row(host, env, label, changed, seed)
 
 
 def trained_pointmass() -> None:
@@ -189,6 +198,9 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("names", nargs="*", default=list(DMC_ENVIRONMENTS))
     parser.add_argument("--same-starts", action="store_true", help="from dm_control's starts")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="other draws: the default context only, from this seed"
+    )
     args = parser.parse_args(argv)
     if args.same_starts:
         for name in args.names:
@@ -200,8 +212,8 @@ def main(argv=None) -> None:
     print(f"{EPISODES} episodes per simulator and row; MJX − dm_control, Welch 95% interval")
     for name in args.names:
         print(name, flush=True)
-        random_actions(name)
-    if "DmcPointMass" in args.names:
+        random_actions(name, args.seed, changed_too=args.seed == 0)
+    if "DmcPointMass" in args.names and args.seed == 0:
         trained_pointmass()
 
 
