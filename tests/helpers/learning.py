@@ -341,7 +341,7 @@ def ppo_grasp(seeds) -> dict[str, np.ndarray]:
     return _ppo_reach("Grasp", seeds, evaluated=False)
 
 
-def _pointmass_mjx():
+def pointmass_mjx_task():
     """PointMass on MJX, its ball starting 2.5 cm from the target (1 cm outside the target sphere,
     where dm_control's reward pays about 0.36 a step) in 100-step episodes, and PPO's settings."""
     env = crl.make("DmcPointMass", backend="mjx", max_steps=100)
@@ -358,9 +358,9 @@ def _pointmass_mjx():
 
 
 def ppo_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
-    """PPO on PointMass on MJX (:func:`_pointmass_mjx`), 50k steps: the mean training return of the
+    """PPO on PointMass on MJX (:func:`pointmass_mjx_task`), 50k steps: the mean training return of the
     first 5 and the last 10 updates."""
-    env, context, config = _pointmass_mjx()
+    env, context, config = pointmass_mjx_task()
     result = _jit(jax.vmap(ppo.make_train(config, env, context)))(_keys(seeds))
     curve = np.asarray(result.metrics["episode_return"])
     first, last = np.nanmean(curve[:, :5], axis=1), np.nanmean(curve[:, -10:], axis=1)
@@ -369,7 +369,7 @@ def ppo_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
 
 def random_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
     """Uniform random actions on :func:`ppo_pointmass_mjx`'s task: the mean return of 16 episodes."""
-    env, context, _ = _pointmass_mjx()
+    env, context, _ = pointmass_mjx_task()
 
     def act(params, obs, ctx, key):
         return env.action_space.sample(key)
