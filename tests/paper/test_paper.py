@@ -29,7 +29,7 @@ from contextrl.paper.checks import (
     _zone,
 )
 from contextrl.paper.plans import planned, training_steps
-from contextrl.paper.runs import plan_text
+from contextrl.paper.runs import plan_text, seconds_per_step, wall_seconds
 from tests.helpers import ROOT
 from tests.helpers.report_tables import check_report
 
@@ -187,6 +187,31 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     bound, final = _differences(settled.evidence), _differences(gap.evidence)
     assert set(final) == {"mean", "median", "IQM"} and set(bound) == set(final)
     assert all(final[name][2] <= bound[name][2] for name in final), (final, bound)
+
+
+def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
+    """DmcWalker's SAC with the paper's settings and with CleanRL's (batches twice as large) cost
+    several times apart per step: the paper run's estimate takes the kept run of its own settings,
+    and another settings' run only where none of its own has finished."""
+    kept = ROOT / PAPER_RUNS
+    for figure in ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl"):
+        for name in ("spec.yaml", "manifest.json"):
+            folder = tmp_path / f"{figure}-small" / figure
+            folder.mkdir(parents=True, exist_ok=True)
+            shutil.copy(kept / f"{figure}-small" / figure / name, folder / name)
+    runs = {
+        f: RunDir(tmp_path / f"{f}-small" / f)
+        for f in ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl")
+    }
+    paper = [
+        parse_spec(spec_data(FIGURES["visibility_dmcwalker"], "visibility_dmcwalker", "paper"))
+    ]
+    own, other = runs["visibility_dmcwalker"], runs["visibility_dmcwalker_cleanrl"]
+    rate, _ = seconds_per_step(paper, "paper", tmp_path)
+    assert rate == wall_seconds(own) / training_steps(own.spec())
+    shutil.rmtree(own.path)
+    rate, _ = seconds_per_step(paper, "paper", tmp_path)
+    assert rate == wall_seconds(other) / training_steps(other.spec())
 
 
 def _differences(evidence: str) -> dict[str, tuple[float, float, float]]:

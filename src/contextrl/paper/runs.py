@@ -196,23 +196,36 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
 
 def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] | None:
     """Wall seconds per training step of the finished paper runs under ``root`` with the
-    environments and agents of ``specs`` (those at ``scale``, else at the small scale), and the
-    machines they ran on; None when there are none."""
-    keys = {(spec.env, spec.agent) for spec in specs}
-    for measured_scale in dict.fromkeys((scale, "small")):
-        seconds = measured_steps = 0.0
-        measured = []
-        for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
-            run = RunDir(spec_file.parent)
-            spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
-            finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
-            if (spec.env, spec.agent) in keys and finished and training_steps(spec):
-                seconds += wall_seconds(run)
-                measured_steps += training_steps(spec)
-                measured.append(run)
-        if measured_steps:
-            return seconds / measured_steps, machines(measured)
+    environments and agents of ``specs`` and the machines they ran on; None when there are none.
+    Runs whose agents have the same settings apart from the budget come first (another agent's batch
+    size or update rate can change the cost of a step several times over), those at ``scale`` before
+    those at the small scale."""
+    wanted = {_agent_settings(spec) for spec in specs}
+    for same_settings in (True, False):
+        for measured_scale in dict.fromkeys((scale, "small")):
+            seconds = measured_steps = 0.0
+            measured = []
+            for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
+                run = RunDir(spec_file.parent)
+                spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
+                settings = _agent_settings(spec)
+                matches = (
+                    settings in wanted if same_settings else settings[:2] in {w[:2] for w in wanted}
+                )
+                finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
+                if matches and finished and training_steps(spec):
+                    seconds += wall_seconds(run)
+                    measured_steps += training_steps(spec)
+                    measured.append(run)
+            if measured_steps:
+                return seconds / measured_steps, machines(measured)
     return None
+
+
+def _agent_settings(spec) -> tuple[str, str, str]:
+    """The environment, the agent and its options other than the budget, comparable as text."""
+    options = {k: v for k, v in spec.agent_options.items() if k != "total_timesteps"}
+    return spec.env, spec.agent, repr(sorted(options.items()))
 
 
 @dataclasses.dataclass(frozen=True)
