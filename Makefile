@@ -39,7 +39,7 @@ test: system-deps install
 	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=25 \
 		--junitxml=.pytest_cache/junit.xml
 
-# After a whole `make test`: the order of the test files for the next one, from its measured durations.
+# After a fresh clone's whole `make test`, as CI runs it: the test files' order, from its durations.
 test-order:
 	$(PY) tools/order_tests.py .pytest_cache/junit.xml
 

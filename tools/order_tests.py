@@ -3,11 +3,13 @@
     python tools/order_tests.py .pytest_cache/junit.xml     # the report `make test` writes
 
 Each file's seconds are the sum of its tests' times (setup, call and teardown: a module fixture's
-compile time counts) in pytest's JUnit report. The files are handed out longest first, so that the
-short ones fill in at the end and both workers finish together. Two files that each start PB2 on a
-local Ray (APART) must not run at the same time: the order is simulated on two workers, and while
-their runs overlap the later one moves one place down. The result, `tests/file_durations.json`, is
-what tests/conftest.py reads.
+compile time counts) in pytest's JUnit report. Take the report of a fresh clone's `make test`, as CI
+runs it: a later run loads most programs from the suite's compilation cache (.pytest_cache/jax), so
+its durations understate CI's. The files are handed out longest first, so that the short ones fill
+in at the end and both workers finish together. Two files that each start PB2 on a local Ray (APART)
+must not run at the same time: the order is simulated on two workers, and while their runs overlap
+the later one moves one place down. The result, `tests/file_durations.json`, is what
+tests/conftest.py reads.
 """
 
 from __future__ import annotations
