@@ -165,6 +165,7 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
         f"- **At full budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept"
         in section
     )
+    assert "at the pace of its finished chunks" in section  # its own budget's pace, not another's
     # its general agents are trained, so the specialists to come are bounded by the 20 an episode
     # of 20 steps can return: the intervals are already below 30, and the finished run's never
     # exceed those bounds (the same bootstrap draws; mean, median and IQM never fall as a return rises)

@@ -270,21 +270,22 @@ def progress(
 
 
 def time_left(figure: PaperFigure, parts: list[PartProgress], scale: str, root: str | Path) -> str:
-    """The time the parts' steps left should take at the rate finished runs of the same agents
-    were measured at, else at the pace of the figure's own finished chunks."""
+    """The time the parts' steps left should take at the pace of the figure's own finished chunks
+    (this budget, these settings: a host figure's evaluation grows with its episodes' length), else
+    at the rate finished runs of the same agents were measured at."""
     left = sum(p.steps_left for p in parts)
     if not left:
         return "nothing left to train"
-    rate = seconds_per_step([p.spec for p in parts], scale, root)
-    if rate is not None:
-        return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
     done = sum(p.steps - p.steps_left for p in parts)
     folder = figure_folder(root, figure.name, scale)
     runs = [RunDir(folder / p.part) for p in parts if p.finished]
-    if not done or not runs:
-        return "not estimated (no finished run of these agents)"
-    seconds = sum(wall_seconds(run) for run in runs)
-    return f"≈ {duration(left * seconds / done)} at the pace of its finished chunks"
+    if done and runs:
+        seconds = sum(wall_seconds(run) for run in runs)
+        return f"≈ {duration(left * seconds / done)} at the pace of its finished chunks"
+    rate = seconds_per_step([p.spec for p in parts], scale, root)
+    if rate is not None:
+        return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
+    return "not estimated (no finished run of these agents)"
 
 
 def plan_text(
