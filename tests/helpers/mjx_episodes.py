@@ -35,8 +35,7 @@ from scipy import stats  # noqa: E402
 import contextrl as crl  # noqa: E402
 from contextrl.agents import evaluate_episodes, ppo  # noqa: E402
 from contextrl.envs import DMC_ENVIRONMENTS  # noqa: E402
-from contextrl.envs.dmc_mjx import DmcState  # noqa: E402
-from tests.envs.dmc.test_dmc_mjx import reference_goal  # noqa: E402
+from tests.envs.dmc.test_dmc_mjx import host_start, mjx_start  # noqa: E402
 from tests.helpers import learning  # noqa: E402
 
 EPISODES = 32
@@ -121,8 +120,6 @@ def trained_pointmass() -> None:
 def same_starts(name: str, episodes: int = 48, steps: int = 300) -> None:
     """From dm_control's own starts, the same uniform random actions on both simulators: how far
     apart each episode's return ends."""
-    from mujoco import mjx
-
     host, env = crl.make(name), crl.make(name, backend="mjx")
     context = env.default_context()
     shape = (episodes, steps, *env.action_space.shape)
@@ -130,26 +127,15 @@ def same_starts(name: str, episodes: int = 48, steps: int = 300) -> None:
     rng, starts, theirs = np.random.default_rng(3), [], []
     for episode in actions:
         host.reset_physics(host.context(), rng)
-        data = host.physics.data
-        starts.append(
-            (
-                data.qpos.copy(),
-                data.qvel.copy(),
-                data.act.copy(),
-                reference_goal(name, env, host.physics),
-            )
-        )
+        starts.append(host_start(name, env, host))
         theirs.append(sum(host.step_physics(action)[1] for action in episode))
 
     def episode(qpos, qvel, act, goal, actions):
-        data = env.stock.blank.replace(qpos=qpos, qvel=qvel, act=act)
-        state = DmcState(mjx.forward(env.model(context), data), goal)
-
         def step(state, action):
             state, reward, _ = env.transition(None, state, action, context)
             return state, reward
 
-        return jax.lax.scan(step, state, actions)[1].sum()
+        return jax.lax.scan(step, mjx_start(env, context, qpos, qvel, act, goal), actions)[1].sum()
 
     start = time.perf_counter()
     columns = (jnp.asarray(np.stack(c), jnp.float32) for c in zip(*starts, strict=True))

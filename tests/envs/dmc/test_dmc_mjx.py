@@ -41,6 +41,23 @@ def reference_goal(name: str, env, physics) -> np.ndarray:
     return np.zeros(3)
 
 
+def host_start(name: str, env, host) -> tuple[np.ndarray, ...]:
+    """dm_control's state after its reset as the MJX state holds it: qpos, qvel, act and goal."""
+    data = host.physics.data
+    return (
+        data.qpos.copy(),
+        data.qvel.copy(),
+        data.act.copy(),
+        reference_goal(name, env, host.physics),
+    )
+
+
+def mjx_start(env, context, qpos, qvel, act, goal) -> DmcState:
+    """The MJX state at a start taken from dm_control (``host_start``)."""
+    data = env.stock.blank.replace(qpos=qpos, qvel=qvel, act=act)
+    return DmcState(mjx.forward(env.model(context), data), goal)
+
+
 def feature_rows(host) -> list[tuple[str, dict]]:
     """The default context, then one context per feature the MJX version has, moved off its default."""
     rows = [("default", {})]
@@ -58,9 +75,7 @@ def run_both(name: str, task: str | None = None):
     theirs, starts = [], []
     for _, values in rows:
         host.reset_physics(host.context(**values), np.random.default_rng(3))
-        data = host.physics.data
-        starts.append((data.qpos.copy(), data.qvel.copy(), data.act.copy()))
-        starts[-1] += (reference_goal(name, env, host.physics),)
+        starts.append(host_start(name, env, host))
         steps = [host.step_physics(action)[:2] for action in actions]
         theirs.append(([obs for obs, _ in steps], [reward for _, reward in steps]))
     contexts = jax.tree_util.tree_map(
@@ -70,16 +85,12 @@ def run_both(name: str, task: str | None = None):
         jnp.asarray(np.stack(part), jnp.float32) for part in zip(*starts, strict=True)
     )
 
-    def start(context, qpos, qvel, act, goal):
-        data = env.stock.blank.replace(qpos=qpos, qvel=qvel, act=act)
-        return DmcState(mjx.forward(env.model(context), data), goal)
-
-    def episode(context, qpos, qvel, act, goal):
+    def episode(context, *start):
         def step(state, action):
             state, reward, _ = env.transition(None, state, action, context)
             return state, (env.observe(state, context), reward)
 
-        return jax.lax.scan(step, start(context, qpos, qvel, act, goal), jnp.asarray(actions))[1]
+        return jax.lax.scan(step, mjx_start(env, context, *start), jnp.asarray(actions))[1]
 
     ours = jax.jit(jax.vmap(episode))(contexts, qpos, qvel, act, goal)
     their_obs = np.stack([np.stack(obs) for obs, _ in theirs])
