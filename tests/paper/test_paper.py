@@ -194,20 +194,16 @@ def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
     """DmcWalker's SAC with the paper's settings and with CleanRL's (batches twice as large) cost
     several times apart per step: the paper run's estimate takes the kept run of its own settings,
     and another settings' run only where none of its own has finished."""
-    kept = ROOT / PAPER_RUNS
-    for figure in ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl"):
+    kept, names = ROOT / PAPER_RUNS, ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl")
+    runs = []
+    for figure in names:
+        folder = tmp_path / f"{figure}-small" / figure
+        folder.mkdir(parents=True)
         for name in ("spec.yaml", "manifest.json"):
-            folder = tmp_path / f"{figure}-small" / figure
-            folder.mkdir(parents=True, exist_ok=True)
             shutil.copy(kept / f"{figure}-small" / figure / name, folder / name)
-    runs = {
-        f: RunDir(tmp_path / f"{f}-small" / f)
-        for f in ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl")
-    }
-    paper = [
-        parse_spec(spec_data(FIGURES["visibility_dmcwalker"], "visibility_dmcwalker", "paper"))
-    ]
-    own, other = runs["visibility_dmcwalker"], runs["visibility_dmcwalker_cleanrl"]
+        runs.append(RunDir(folder))
+    own, other = runs
+    paper = [parse_spec(spec_data(FIGURES[names[0]], names[0], "paper"))]
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(own) / training_steps(own.spec())
     shutil.rmtree(own.path)
