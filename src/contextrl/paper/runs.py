@@ -201,24 +201,31 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
     size or update rate can change the cost of a step several times over), those at ``scale`` before
     those at the small scale."""
     wanted = {_agent_settings(spec) for spec in specs}
+    agents = {settings[:2] for settings in wanted}
+    finished = {measured_scale: [] for measured_scale in (scale, "small")}
+    for measured_scale, runs in finished.items():
+        for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
+            run = RunDir(spec_file.parent)
+            spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
+            settings = _agent_settings(spec)
+            # the same environment and agent, its `contextrl paper run` ended, and it trained
+            if (
+                settings[:2] in agents
+                and "paper_machine" in run.manifest()
+                and training_steps(spec)
+            ):
+                runs.append((run, spec, settings))
     for same_settings in (True, False):
-        for measured_scale in dict.fromkeys((scale, "small")):
-            seconds = measured_steps = 0.0
-            measured = []
-            for spec_file in sorted(Path(root).glob(f"*-{measured_scale}/*/spec.yaml")):
-                run = RunDir(spec_file.parent)
-                spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
-                settings = _agent_settings(spec)
-                matches = (
-                    settings in wanted if same_settings else settings[:2] in {w[:2] for w in wanted}
-                )
-                finished = "paper_machine" in run.manifest()  # its `contextrl paper run` ended
-                if matches and finished and training_steps(spec):
-                    seconds += wall_seconds(run)
-                    measured_steps += training_steps(spec)
-                    measured.append(run)
-            if measured_steps:
-                return seconds / measured_steps, machines(measured)
+        for runs in finished.values():
+            measured = [
+                (run, spec)
+                for run, spec, settings in runs
+                if settings in wanted or not same_settings
+            ]
+            if measured:
+                seconds = sum(wall_seconds(run) for run, _ in measured)
+                steps = sum(training_steps(spec) for _, spec in measured)
+                return seconds / steps, machines(run for run, _ in measured)
     return None
 
 
