@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import contextrl as crl
-from contextrl.agents import dqn, evaluate, ppo, sac
+from contextrl.agents import dqn, evaluate, get_agent, ppo, sac
 from tests.helpers import ROOT
 
 EXAMPLES = ROOT / "examples"
@@ -301,10 +301,7 @@ def _ppo_reach(name: str, seeds, evaluated: bool = True) -> dict[str, np.ndarray
 
 def _random_reach(name: str, seeds) -> dict[str, np.ndarray]:
     env, context, _, numerics = _reaching_task(name)
-
-    def act(params, obs, ctx, key):
-        return env.action_space.sample(key)
-
+    act = get_agent("random").make_policy(None, env, None)
     return _reach_statistics(env, context, act, jnp.zeros(len(seeds)), seeds, numerics)
 
 
@@ -370,10 +367,7 @@ def ppo_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
 def random_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
     """Uniform random actions on :func:`ppo_pointmass_mjx`'s task: the mean return of 16 episodes."""
     env, context, _ = pointmass_mjx_task()
-
-    def act(params, obs, ctx, key):
-        return env.action_space.sample(key)
-
+    act = get_agent("random").make_policy(None, env, None)
     returns = _jit(jax.vmap(lambda key: evaluate(act, None, env, context, 16, key)))(
         _keys(seeds, 10_000)
     )

@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
 import contextrl as crl  # noqa: E402
-from contextrl.agents import evaluate_episodes, ppo  # noqa: E402
+from contextrl.agents import evaluate_episodes, get_agent, ppo  # noqa: E402
 from contextrl.envs import DMC_ENVIRONMENTS  # noqa: E402
 from tests.envs.dmc.test_dmc_mjx import host_start, mjx_start  # noqa: E402
 from tests.helpers import learning  # noqa: E402
@@ -75,10 +75,7 @@ def random_row(host, env, label: str, values: dict, seed: int = 0) -> None:
     """Uniform random actions on both simulators at the context ``values`` (MJX's keys from
     ``seed``, dm_control's generator from ``seed + 1``)."""
     context = env.context(**values)
-
-    def act(params, obs, ctx, key):
-        return env.action_space.sample(key)
-
+    act = get_agent("random").make_policy(None, env, None)
     start = time.perf_counter()
     run = jax.jit(lambda key: evaluate_episodes(act, None, env, context, EPISODES, key))
     ours = np.asarray(run(jax.random.key(seed))).ravel()
