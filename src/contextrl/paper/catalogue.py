@@ -180,6 +180,16 @@ FIGURES = {
             },
         ),
         PaperFigure(
+            "visibility_dmcwalker_tuned_entropy",
+            better_check("concat_varying", "hidden"),
+            {
+                "agent_options": {"total_timesteps": 60000},
+                "seeds": 2,
+                "max_steps": 200,
+                "num_test_contexts": 20,
+            },
+        ),
+        PaperFigure(
             "visibility_pendulum",
             similar_check("concat_varying", "hidden"),
             {"seeds": 5, "num_test_contexts": 50, "eval_episodes": 5},
