@@ -32,7 +32,8 @@ MEASURED_NUMERICS = {"xla_backend_optimization_level": 3, "xla_cpu_use_fusion_em
 OLDER_EMITTERS = {**MEASURED_NUMERICS, "xla_cpu_use_fusion_emitters": False}
 
 
-def _jit(function, numerics=MEASURED_NUMERICS):
+def measured_jit(function, numerics=MEASURED_NUMERICS):
+    """``jax.jit`` under the numerics the margins were measured on, whatever the suite's flags."""
     return jax.jit(function, compiler_options=numerics)
 
 
@@ -43,9 +44,9 @@ def _keys(seeds, offset: int = 0):
 def _train_and_evaluate(module, config, env, train_contexts, eval_context, seeds, episodes=10):
     """Train one agent per seed in one vmapped call; each seed's mean evaluation return and curve."""
     train = module.make_train(config, env, train_contexts)
-    result = _jit(jax.vmap(train))(_keys(seeds))
+    result = measured_jit(jax.vmap(train))(_keys(seeds))
     policy = module.make_policy(config, env, train_contexts)
-    returns = _jit(
+    returns = measured_jit(
         jax.vmap(lambda params, key: evaluate(policy, params, env, eval_context, episodes, key))
     )(result.params, _keys(seeds, 10_000))
     return np.asarray(returns).reshape(len(seeds)), result
@@ -122,7 +123,7 @@ def purejaxrl_cartpole(seeds) -> dict[str, np.ndarray]:
     """examples/purejaxrl_ppo_cartpole.py (PureJaxRL's PPO on the gymnax face, 100k steps, pole
     lengths resampled from U(0.25, 0.75)): mean return of the first 5 and the last 10 % of updates."""
     example = load_example("purejaxrl_ppo_cartpole")
-    out = _jit(jax.vmap(example.make_train(example.CONFIG)))(_keys(seeds))
+    out = measured_jit(jax.vmap(example.make_train(example.CONFIG)))(_keys(seeds))
     returns = np.asarray(jax.vmap(example.returns_per_update)(out["metrics"]))
     tail = returns.shape[1] // 10
     return {
@@ -156,11 +157,11 @@ def platformer_levels(seeds) -> dict[str, np.ndarray]:
         context_selector="round_robin",
     )
     train = ppo.make_train(config, env, levels)
-    result = _jit(jax.vmap(train))(_keys(seeds))
+    result = measured_jit(jax.vmap(train))(_keys(seeds))
     policy = ppo.make_policy(config, env, levels)
-    returns = _jit(jax.vmap(lambda params, key: evaluate(policy, params, env, levels, 1, key)))(
-        result.params, _keys(seeds, 10_000)
-    )
+    returns = measured_jit(
+        jax.vmap(lambda params, key: evaluate(policy, params, env, levels, 1, key))
+    )(result.params, _keys(seeds, 10_000))
     returns = np.asarray(returns).reshape(len(seeds), 4)
     curve = np.asarray(result.metrics["episode_return"])
     return {
@@ -185,7 +186,7 @@ def brax_sac_pendulum(seeds) -> dict[str, np.ndarray]:
 
     env = family.InvertedPendulum(max_steps=200)
     train = sac.make_train(config, env, env.default_context())
-    curve = np.asarray(_jit(jax.vmap(train))(_keys(seeds)).metrics["episode_return"])
+    curve = np.asarray(measured_jit(jax.vmap(train))(_keys(seeds)).metrics["episode_return"])
     return {"first_rows": curve[:, 0], "last_rows": curve[:, -1]}
 
 
@@ -256,7 +257,8 @@ def _reach_statistics(env, context, act, params, seeds, numerics) -> dict[str, n
         return jax.vmap(episode, in_axes=(None, 0))(params, keys)
 
     ahead, reached, total = (
-        np.asarray(x) for x in _jit(jax.vmap(per_seed), numerics)(params, _keys(seeds, 10_000))
+        np.asarray(x)
+        for x in measured_jit(jax.vmap(per_seed), numerics)(params, _keys(seeds, 10_000))
     )
     return {
         "reached": reached.mean(axis=1),
@@ -289,7 +291,7 @@ def _ppo_reach(name: str, seeds, evaluated: bool = True) -> dict[str, np.ndarray
     """The training curve's first 5 and last 10 updates' mean episode return, and (``evaluated``)
     :func:`_reach_statistics` of the trained deterministic policy."""
     env, context, config, numerics = _reaching_task(name)
-    result = _jit(jax.vmap(ppo.make_train(config, env, context)), numerics)(_keys(seeds))
+    result = measured_jit(jax.vmap(ppo.make_train(config, env, context)), numerics)(_keys(seeds))
     curve = np.asarray(result.metrics["episode_return"])
     first, last = np.nanmean(curve[:, :5], axis=1), np.nanmean(curve[:, -10:], axis=1)
     statistics = {"first_updates": first, "last_updates": last, "rise": last - first}
@@ -358,7 +360,7 @@ def ppo_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
     """PPO on PointMass on MJX (:func:`pointmass_mjx_task`), 50k steps: the mean training return of the
     first 5 and the last 10 updates."""
     env, context, config = pointmass_mjx_task()
-    result = _jit(jax.vmap(ppo.make_train(config, env, context)))(_keys(seeds))
+    result = measured_jit(jax.vmap(ppo.make_train(config, env, context)))(_keys(seeds))
     curve = np.asarray(result.metrics["episode_return"])
     first, last = np.nanmean(curve[:, :5], axis=1), np.nanmean(curve[:, -10:], axis=1)
     return {"first_updates": first, "last_updates": last}
@@ -368,7 +370,7 @@ def random_pointmass_mjx(seeds) -> dict[str, np.ndarray]:
     """Uniform random actions on :func:`ppo_pointmass_mjx`'s task: the mean return of 16 episodes."""
     env, context, _ = pointmass_mjx_task()
     act = get_agent("random").make_policy(None, env, None)
-    returns = _jit(jax.vmap(lambda key: evaluate(act, None, env, context, 16, key)))(
+    returns = measured_jit(jax.vmap(lambda key: evaluate(act, None, env, context, 16, key)))(
         _keys(seeds, 10_000)
     )
     return {"return": np.asarray(returns).reshape(len(seeds))}

@@ -104,7 +104,7 @@ def random_actions(name: str, seed: int = 0, changed_too: bool = True) -> None:
 def trained_pointmass() -> None:
     """PPO trained on MJX (seed 0), its deterministic policy on both simulators."""
     env, context, config = learning.pointmass_mjx_task()
-    result = learning._jit(ppo.make_train(config, env, context))(jax.random.key(0))
+    result = learning.measured_jit(ppo.make_train(config, env, context))(jax.random.key(0))
     spread = env.context(starting_x=0.025, start_spread=0.05)  # ±1.5 cm in a 0.3 m arena
     policy = ppo.make_policy(config, env, context)
     run = jax.jit(lambda key: evaluate_episodes(policy, result.params, env, spread, EPISODES, key))
