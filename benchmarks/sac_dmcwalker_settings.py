@@ -23,6 +23,7 @@ from contextrl.xla_flags import xla_cpu_workaround
 
 xla_cpu_workaround()  # before anything starts JAX's CPU backend
 
+from contextrl.agents.sac import SACConfig  # noqa: E402
 from contextrl.analysis.scores import learned  # noqa: E402
 from contextrl.experiments import RunDir, resume, run_experiment  # noqa: E402
 
@@ -37,20 +38,10 @@ ROWS = [
     ("actor_lr", "actor learning rate 3e-4 (paper: 1e-3)", {"policy_lr": 3e-4}),
     ("tau", "target update rate 0.005 (paper: 0.001)", {"tau": 0.005}),
     ("actor_every_2", "an actor update every 2 (paper: every 4)", {"policy_frequency": 2}),
-    (
-        "cleanrl",
-        "CleanRL's defaults throughout",
-        {
-            "autotune": True,
-            "gamma": 0.99,
-            "n_step": 1,
-            "batch_size": 256,
-            "policy_lr": 3e-4,
-            "tau": 0.005,
-            "policy_frequency": 2,
-        },
-    ),
+    ("cleanrl", "CleanRL's defaults throughout", {}),  # filled in below from SACConfig
 ]
+# CleanRL's defaults are SACConfig's: every option a row above moves, at its class default.
+ROWS[-1][2].update({key: getattr(SACConfig, key) for _, _, row in ROWS[:-1] for key in row})
 
 
 def spec(options: dict, timesteps: int) -> dict:
