@@ -9,12 +9,14 @@ import re
 import shutil
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from contextrl.analysis.intervals import Interval
 from contextrl.cli import main
+from contextrl.experiments.plan import trial_columns
 from contextrl.experiments.runner import run_experiment
-from contextrl.experiments.runs import RunDir
+from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import parse_spec
 from contextrl.paper import FIGURES, PAPER_RUNS, SCALES, results_page, run_figure, spec_data
 from contextrl.paper.catalogue import SPEC_FOLDER
@@ -163,7 +165,8 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     for name in ("tabular_cmdp", "optgap_cartpole", "baseline_mountaincar_default"):
         assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
-    assert manifest["paper_machine"] == f"{os.cpu_count()} CPU cores"  # the page states it
+    cores = len(os.sched_getaffinity(0))  # the cores the run could use, as `taskset` leaves them
+    assert manifest["paper_machine"] == f"{cores} CPU core{'s' if cores > 1 else ''}"  # on the page
     # the plan `paper run` prints first: chunks finished and steps left, from the run's own files
     gap_run = RunDir(paper_runs / "optgap_cartpole-tiny" / "optgap_cartpole")
     plan = planned(gap_run.spec())
@@ -212,6 +215,49 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     bound, final = _differences(settled.evidence), _differences(gap.evidence)
     assert set(final) == {"mean", "median", "IQM"} and set(bound) == set(final)
     assert all(final[name][2] <= bound[name][2] for name in final), (final, bound)
+
+
+def test_a_run_under_way_has_no_verdict_once_an_agent_with_every_seed_trained_did_not_learn(
+    tmp_path,
+):
+    """The gate is on each variant's mean over its seeds: once every seed of one variant has trained
+    without beating a random policy, no unfinished chunk can give the figure a verdict, and the page
+    says so. The DmcWalker figure's paper spec (a chunk per trial, hidden's five seeds first), its
+    returns written by hand: a random policy's 20 at every training context."""
+    figure = FIGURES["visibility_dmcwalker"]
+    spec = parse_spec({**spec_data(figure, figure.name, "paper"), "batch_size": 1})  # as run
+    run = RunDir.create(spec, out=tmp_path / f"{figure.name}-paper" / figure.name)
+    plan = planned(spec)
+
+    def finish(chunk: int, train_return: float) -> None:
+        (trial,) = (plan.trials[i] for i in plan.chunks[chunk])
+        row = {**trial_columns(trial), "train_return": train_return, "random_return": 20.0}
+        write_parquet(run.path / "training" / f"chunk-{chunk:04d}.parquet", pd.DataFrame([row]))
+        tested = {**trial_columns(trial), "test_set": trial.test_set, "context_index": 0}
+        write_parquet(
+            run.path / "results" / f"chunk-{chunk:04d}.parquet",
+            pd.DataFrame([{**tested, "return": train_return}]),
+        )
+        run.record_timing(chunk, 60.0)
+
+    for chunk in range(4):
+        finish(chunk, 19.0 + chunk % 2)  # hidden, seeds 0-3
+    assert [plan.trials[i].variant for i in plan.chunks[4]] == ["hidden"]
+    assert figure.check.settled({figure.name: run}) is None  # seed 4 could still lift the mean
+    finish(4, 40.0)  # mean 23.6 against 20: hidden learned, the other variants to come
+    assert figure.check.settled({figure.name: run}) is None
+    finish(4, 25.0)  # mean 20.6: short of 20 + 10% of 20
+    settled = figure.check.settled({figure.name: run})
+    assert settled.word == "no verdict" and settled.holds is None
+    assert settled.withheld == "the agent did not learn at this budget: hidden"
+    assert "hidden 20.6 vs 20, over 5 seeds each, all trained" in settled.evidence
+    section = results_page(tmp_path).split(f"## {figure.name}\n")[1].split("\n## ")[0]
+    assert "under way, 5 of 15 chunks finished and kept" in section
+    assert (
+        "**Already no verdict** (the agent did not learn at this budget: hidden), whatever the "
+        "unfinished chunks give: trained vs random return at the training contexts: hidden 20.6 vs "
+        "20, over 5 seeds each"
+    ) in section
 
 
 def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):

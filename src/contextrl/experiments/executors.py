@@ -298,7 +298,8 @@ def run_local(
     return _drive(run, plan, max_chunks, progress, save_params, finished)
 
 
-def _cores() -> int:
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity, which ``taskset`` narrows), as workers."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
@@ -340,7 +341,7 @@ def run_processes(
     spec_data = spec_to_dict(plan.spec)
 
     def finished(todo: list[int]):
-        count = max(1, min(workers or _cores(), len(todo)))
+        count = max(1, min(workers or usable_cores(), len(todo)))
         context = multiprocessing.get_context("spawn")  # a fresh JAX in each worker, never a fork
         with contextlib.ExitStack() as stack:
             updates = None

@@ -82,9 +82,12 @@ def learning(runs: Mapping[str, RunDir]) -> Learning:
     """Per variant and agent kind over the figure's runs, the trained and the random policy's mean
     return on the training contexts (what the run's "Did the agents learn?" section shows)."""
     frames = [frame for frame in (run.training() for run in runs.values()) if not frame.empty]
-    if not frames:
+    return _learning(pd.concat(frames, ignore_index=True) if frames else pd.DataFrame())
+
+
+def _learning(frame: pd.DataFrame) -> Learning:
+    if frame.empty:
         return Learning({})
-    frame = pd.concat(frames, ignore_index=True)
     several_kinds = frame["kind"].nunique() > 1
     returns = {}
     for (variant, kind), group in frame.groupby(["variant", "kind"], sort=False):
@@ -118,10 +121,12 @@ class Check:
 
     def settled(self, runs: Mapping[str, RunDir]) -> Verdict | None:
         """On runs under way: the verdict their finished chunks already fix, gated as a finished
-        run's, or None (no bound, or the bound does not decide)."""
-        if self.settle is None:
-            return None
-        return self._judged(runs, self.settle)
+        run's; else, for a gated check, no verdict once an agent with every seed trained has not
+        beaten a random policy (its mean over them is final); else None."""
+        found = self._judged(runs, self.settle) if self.settle is not None else None
+        if found is None and self.gated:
+            return _unlearned_and_complete(runs)
+        return found
 
     def _judged(self, runs: Mapping[str, RunDir], decide) -> Verdict | None:
         if not self.gated:
@@ -143,6 +148,37 @@ class Check:
             which = ", ".join(failed) or "no agent has a training record"
             reasons.append(f"the agent did not learn at this budget: {which}")
         return Verdict(found.holds, evidence, "; ".join(reasons))
+
+
+def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
+    """No verdict, whatever the unfinished chunks give, when the agents of a variant and kind whose
+    chunks have all finished did not beat a random policy at their training contexts; else None.
+    The intervals are not computed (the variants to come are missing), so ``holds`` is None."""
+    waiting, frames = set(), []
+    for run in runs.values():
+        spec = run.spec()
+        if not spec.agent_entry().trained:
+            return None
+        plan, finished = planned(spec), run.finished()
+        for c, chunk in enumerate(plan.chunks):
+            if c not in finished:
+                waiting |= {(plan.trials[i].variant, plan.trials[i].kind) for i in chunk}
+        frames.append(run.training())
+    frame = pd.concat(frames, ignore_index=True)
+    if not waiting or frame.empty:
+        return None  # finished (the check itself says) or nothing trained yet
+    pairs = pd.MultiIndex.from_frame(frame[["variant", "kind"]])
+    complete = frame[~pairs.isin(list(waiting))]
+    failed = _learning(complete).failed()
+    if not failed:
+        return None
+    seeds = sorted(set(complete.groupby(["variant", "kind"])["seed"].nunique()))
+    return Verdict(
+        None,
+        f"{_learning(complete)}, over {' or '.join(map(str, seeds))} seeds each, all trained (the "
+        "unfinished chunks train other agents)",
+        f"the agent did not learn at this budget: {', '.join(failed)}",
+    )
 
 
 def _decide(interval: Interval, above: float = 0.0) -> bool | None:

@@ -172,6 +172,11 @@ def _settled(figure: PaperFigure, root: str | Path) -> str:
     verdict = figure.check.settled(runs) if runs else None
     if verdict is None:
         return ""
+    if verdict.holds is None:  # the learnability gate alone: no interval without the rest
+        return (
+            f" **Already no verdict** ({verdict.withheld}), whatever the unfinished chunks give: "
+            f"{verdict.evidence}."
+        )
     if verdict.withheld:
         return (
             f" Whatever the unfinished chunks give, its intervals would say *{_rule_word(verdict)}*"

@@ -6,7 +6,6 @@ extrapolated."""
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import time
 from collections.abc import Mapping
@@ -16,6 +15,7 @@ import jax
 
 from contextrl.analysis.report import Figure as ReportFigure
 from contextrl.analysis.report import Section, render
+from contextrl.experiments.executors import usable_cores
 from contextrl.experiments.planning import duration
 from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir, write_text
@@ -79,7 +79,8 @@ def wall_seconds(run: RunDir) -> float:
 def machine() -> str:
     """What trained, for the wall times the page states: JAX's accelerator, else the CPU cores."""
     device = jax.devices()[0]
-    cores = f"{os.cpu_count()} CPU cores"
+    count = usable_cores()
+    cores = f"{count} CPU core{'s' if count > 1 else ''}"
     return cores if device.platform == "cpu" else f"one {device.device_kind} and {cores}"
 
 
