@@ -225,7 +225,8 @@ def test_a_run_under_way_has_no_verdict_once_an_agent_with_every_seed_trained_di
     says so. The DmcWalker figure's paper spec (a chunk per trial, hidden's five seeds first), its
     returns written by hand: a random policy's 20 at every training context."""
     figure = FIGURES["visibility_dmcwalker"]
-    spec = parse_spec({**spec_data(figure, figure.name, "paper"), "batch_size": 1})  # as run
+    # a chunk per trial, as `paper run` plans a host figure
+    spec = parse_spec({**spec_data(figure, figure.name, "paper"), "batch_size": 1})
     run = RunDir.create(spec, out=tmp_path / f"{figure.name}-paper" / figure.name)
     plan = planned(spec)
 

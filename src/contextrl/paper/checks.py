@@ -86,6 +86,7 @@ def learning(runs: Mapping[str, RunDir]) -> Learning:
 
 
 def _learning(frame: pd.DataFrame) -> Learning:
+    """:func:`learning` of one training table (a run's, or only the agents whose seeds are done)."""
     if frame.empty:
         return Learning({})
     several_kinds = frame["kind"].nunique() > 1
