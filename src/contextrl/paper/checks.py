@@ -170,13 +170,14 @@ def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
         return None  # finished (the check itself says) or nothing trained yet
     pairs = pd.MultiIndex.from_frame(frame[["variant", "kind"]])
     complete = frame[~pairs.isin(list(waiting))]
-    failed = _learning(complete).failed()
+    learned_ = _learning(complete)
+    failed = learned_.failed()
     if not failed:
         return None
     seeds = sorted(set(complete.groupby(["variant", "kind"])["seed"].nunique()))
     return Verdict(
         None,
-        f"{_learning(complete)}, over {' or '.join(map(str, seeds))} seeds each, all trained (the "
+        f"{learned_}, over {' or '.join(map(str, seeds))} seeds each, all trained (the "
         "unfinished chunks train other agents)",
         f"the agent did not learn at this budget: {', '.join(failed)}",
     )
