@@ -31,7 +31,7 @@ from contextrl.paper.checks import (
     _zone,
 )
 from contextrl.paper.plans import planned, training_steps
-from contextrl.paper.runs import plan_text, seconds_per_step, wall_seconds
+from contextrl.paper.runs import _add_catalogue_seeds, plan_text, seconds_per_step, wall_seconds
 from tests.helpers import ROOT
 from tests.helpers.report_tables import check_report
 
@@ -259,6 +259,57 @@ def test_a_run_under_way_has_no_verdict_once_an_agent_with_every_seed_trained_di
         "unfinished chunks give: trained vs random return at the training contexts: hidden 20.6 vs "
         "20, over 5 seeds each"
     ) in section
+
+
+def test_a_figure_whose_full_budget_does_not_fit_is_decided_at_the_small_budget(tmp_path):
+    """PB2 on Acrobot: a kept small run of 3 PB2 runs per arm gets the catalogue's 5 (its 3 stay),
+    and the small run, finished, decides, its budget stated as the deviation. The best members'
+    returns written by hand: hidden -100 + seed, visible -300 + seed, a random policy's -500."""
+    figure = FIGURES["pb2_acrobot"]
+    assert figure.decided_small
+    runs = {}
+    for part, base in (("hidden", -100.0), ("visible", -300.0)):
+        spec = parse_spec({**spec_data(figure, part, "small"), "seeds": 3})
+        runs[part] = RunDir.create(spec, out=tmp_path / "pb2_acrobot-small" / part)
+        runs[part].update_manifest(paper_machine="2 CPU cores")  # as `paper run` records it
+        for chunk in range(3):
+            _write_chunk(runs[part], planned(spec), chunk, base + chunk, -500.0)
+        _add_catalogue_seeds(figure, part, "small", runs[part], progress=False)
+        assert runs[part].spec().seeds == MIN_SEEDS and runs[part].finished() == {0, 1, 2}
+    section = results_page(tmp_path).split("## pb2_acrobot\n")[1].split("\n## ")[0]
+    assert "- **At the small budget**: under way, 6 of 10 chunks finished and kept" in section
+    for part, base in (("hidden", -100.0), ("visible", -300.0)):
+        for chunk in (3, 4):
+            _write_chunk(runs[part], planned(runs[part].spec()), chunk, base + chunk, -500.0)
+    section = results_page(tmp_path).split("## pb2_acrobot\n")[1].split("\n## ")[0]
+    assert (
+        "- **At the small budget, which decides here** (hidden: 5 PB2 runs × 4 agents × 40,000 "
+        "steps each"
+    ) in section
+    assert (
+        "a deviation: the full budget does not fit two CPU cores, see below): the claim **holds**. "
+        "mean test return hidden − concat_all = 200 ["
+    ) in section
+    assert "hidden -98, concat_all -298; trained vs random return" in section  # -100 + 0..4
+
+
+def _write_chunk(run: RunDir, plan, chunk: int, value: float, random: float) -> None:
+    """A finished chunk written by hand: its trials return ``value`` at every test context."""
+    for index in plan.chunks[chunk]:
+        trial = plan.trials[index]
+        row = {**trial_columns(trial), "train_return": value, "random_return": random}
+        write_parquet(run.path / "training" / f"chunk-{chunk:04d}.parquet", pd.DataFrame([row]))
+        tested = [
+            {
+                **trial_columns(trial),
+                "test_set": trial.test_set,
+                "context_index": i,
+                "return": value,
+            }
+            for i in range(len(plan.sets[trial.test_set]))
+        ]
+        write_parquet(run.path / "results" / f"chunk-{chunk:04d}.parquet", pd.DataFrame(tested))
+        run.record_timing(chunk, 60.0)
 
 
 def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):

@@ -11,6 +11,7 @@ from typing import Any
 
 from contextrl.compile_cache import use_compilation_cache
 from contextrl.experiments.executors import EXECUTORS, run_chunks
+from contextrl.experiments.more_seeds import finish_adding_seeds
 from contextrl.experiments.plan import expand
 from contextrl.experiments.protocol import protocol_of
 from contextrl.experiments.reports import build_report
@@ -48,6 +49,7 @@ def open_run(
     use_compilation_cache()
     if resume is not None:
         run = RunDir(resume)
+        finish_adding_seeds(run)  # where a process adding seeds was killed part-way
         return run, prepare(run.spec())
     spec = prepare(spec)
     return RunDir.create(spec, root=root, out=None if out is None else str(out)), spec

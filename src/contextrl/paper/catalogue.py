@@ -15,6 +15,7 @@ from contextrl.agents import ConfigError
 from contextrl.experiments.spec import SpecError, load_yaml, parse_spec
 from contextrl.paper.checks import (
     GATE,
+    MIN_SEEDS,
     Check,
     better_check,
     gap_check,
@@ -36,6 +37,7 @@ class PaperFigure:
     check: Check
     small: Mapping[str, Any]  # spec fields for two CPU cores (agent_options merge into the spec's)
     parts: tuple[str, ...] = ()  # spec files (stems) of a figure of several runs
+    decided_small: bool = False  # the full budget does not fit two CPU cores: the small run decides
 
     def files(self) -> dict[str, Path]:
         stems = self.parts or (self.name,)
@@ -138,6 +140,12 @@ _SMALL_C51 = {"agent_options": {"total_timesteps": 30000}}
 
 _SMALL_SAC = {"agent_options": {"total_timesteps": 20000}}
 
+# A figure whose full budget does not fit two CPU cores in a working session (LunarLander's visibility
+# baseline and PB2: hours to days) is decided at the small budget (``decided_small``), which therefore
+# trains the fewest seeds a verdict needs; elsewhere the small budget previews, with 3 seeds, the full
+# run that decides.
+_DECIDED_SMALL = {"seeds": MIN_SEEDS}
+
 
 FIGURES = {
     f.name: f
@@ -230,7 +238,14 @@ FIGURES = {
                 PaperFigure(
                     f"baseline_{env}_visibility",
                     better_check("concat_varying", "hidden"),
-                    {**small, "seeds": 3, "num_train_contexts": 32, "num_test_contexts": 32},
+                    {
+                        **small,
+                        "seeds": 3,
+                        "num_train_contexts": 32,
+                        "num_test_contexts": 32,
+                        **(_DECIDED_SMALL if env == "lunarlander" else {}),
+                    },
+                    decided_small=env == "lunarlander",
                 ),
             )
         ),
@@ -246,8 +261,9 @@ FIGURES = {
             PaperFigure(
                 f"pb2_{env}",
                 better_check("hidden", "concat_all"),
-                {"population": 4, "rounds": 4, "steps_per_round": 10000, "seeds": 3},
+                {"population": 4, "rounds": 4, "steps_per_round": 10000, **_DECIDED_SMALL},
                 parts=(f"pb2_{env}_hidden", f"pb2_{env}_visible"),
+                decided_small=True,
             )
             for env in ("acrobot", "lunarlander", "pendulum")
         ),

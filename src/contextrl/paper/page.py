@@ -12,7 +12,7 @@ from contextrl.experiments.planning import duration
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec
 from contextrl.paper.catalogue import FIGURES, SCALES, PaperFigure, spec_data
-from contextrl.paper.checks import GATE, Verdict
+from contextrl.paper.checks import GATE, MIN_SEEDS, Verdict
 from contextrl.paper.plans import planned, training_steps
 from contextrl.paper.runs import (
     estimate,
@@ -76,7 +76,9 @@ def results_page(root: str | Path) -> str:
         "**Budgets.** *The paper's budget* only where the paper states it; elsewhere the `paper` "
         "scale runs a *full budget* chosen here (each figure says why). `--scale small` runs the "
         "budget two CPU cores afford: its runs have fewer seeds and steps, so they are evidence at "
-        "a smaller budget, never a verdict. Each figure states the time its full budget takes "
+        "a smaller budget, not a verdict, except where the full budget does not fit two CPU cores "
+        f"in a working session: there the small run trains {MIN_SEEDS} seeds, the fewest a "
+        "verdict needs, and decides at its stated budget, a deviation the figure names. Each figure states the time its full budget takes "
         "(measured, or extrapolated per training step from runs of the same environment and "
         "agent); on a Ray cluster it is `contextrl paper run FIGURE --scale paper --executor ray "
         "--address auto`. Figures on host simulators (Box2D, dm_control) run their chunks on one "
@@ -124,6 +126,12 @@ def results_page(root: str | Path) -> str:
                 lines.append(
                     f"- **At {full}** ({where}): the claim **{verdict.word}**{withheld}. "
                     f"{verdict.evidence}."
+                )
+            elif figure.decided_small and scale == "small":
+                lines.append(
+                    f"- **At the small budget, which decides here** ({where}; a deviation: the "
+                    f"{full} does not fit two CPU cores, see below): the claim "
+                    f"**{verdict.word}**{withheld}. {verdict.evidence}.{_seeds_to_add(figure, runs)}"
                 )
             else:
                 lines.append(
@@ -185,6 +193,19 @@ def _settled(figure: PaperFigure, root: str | Path) -> str:
     return (
         f" **Already decided: the claim {verdict.word}**, whatever the unfinished chunks give: "
         f"{verdict.evidence}."
+    )
+
+
+def _seeds_to_add(figure: PaperFigure, runs: Mapping[str, RunDir]) -> str:
+    """Where a kept small run has fewer seeds than the catalogue's small budget: the command that
+    adds the rest to it."""
+    kept = min(run.spec().seeds for run in runs.values())
+    wanted = min(parse_spec(spec_data(figure, part, "small")).seeds for part in runs)
+    if kept >= wanted:
+        return ""
+    return (
+        f" The small budget trains {wanted} seeds; `contextrl paper run {figure.name} --scale "
+        f"small` adds the other {wanted - kept}, keeping the finished ones."
     )
 
 

@@ -16,10 +16,11 @@ import jax
 from contextrl.analysis.report import Figure as ReportFigure
 from contextrl.analysis.report import Section, render
 from contextrl.experiments.executors import usable_cores
+from contextrl.experiments.more_seeds import add_seeds
 from contextrl.experiments.planning import duration
 from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir, write_text
-from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec
+from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec, spec_to_dict
 from contextrl.paper.catalogue import FIGURES, PaperFigure, spec_data
 from contextrl.paper.checks import Verdict
 from contextrl.paper.plans import parsed_spec, planned, training_steps
@@ -115,6 +116,8 @@ def run_figure(
     trials a new part trains in one vmapped call (a GPU takes all)."""
     figure = FIGURES[name]
     folder = figure_folder(root, name, scale)
+    for part in figure.files():
+        _add_catalogue_seeds(figure, part, scale, RunDir(folder / part), progress)
     if progress:
         print(plan_text(figure, scale, root, batch_size), file=sys.stderr, flush=True)
     for part in figure.files():
@@ -143,6 +146,29 @@ def run_figure(
         raise RuntimeError(f"{name}: some chunks failed; rerun the same command to retry them")
     verdict = figure.check(runs)
     return verdict, write_text(folder / "paper.html", _figure_report(figure, scale, runs, verdict))
+
+
+def _add_catalogue_seeds(
+    figure: PaperFigure, part: str, scale: str, run: RunDir, progress: bool
+) -> None:
+    """Give a kept run the catalogue's seed count where that is larger and nothing else differs
+    (the trials per chunk aside): its finished seeds stay (``more_seeds``)."""
+    if not (run.path / "spec.yaml").exists():
+        return
+    kept = spec_to_dict(run.spec())
+    wanted = spec_to_dict(parse_spec(spec_data(figure, part, scale)))
+    if wanted["seeds"] <= kept["seeds"] or any(
+        kept[key] != wanted[key] for key in kept.keys() - {"seeds", "batch_size"}
+    ):
+        return
+    add_seeds(run, wanted["seeds"])
+    if progress:
+        print(
+            f"{part}: seeds {kept['seeds']} -> {wanted['seeds']} as the catalogue's {scale} "
+            f"budget says; its {len(run.finished())} finished chunk(s) stay",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], verdict) -> str:
