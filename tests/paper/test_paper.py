@@ -60,6 +60,16 @@ def test_the_small_scale_keeps_the_papers_schedule_and_cuts_the_budget():
     assert paper["agent_options"] == {"total_timesteps": 100000, "context_selector": "round_robin"}
     assert small["agent_options"] == {"total_timesteps": 30000, "context_selector": "round_robin"}
     assert (paper["num_contexts"], small["num_contexts"]) == (64, 8)
+    decided = [f.name for f in FIGURES.values() if f.decided_small]  # their small runs decide
+    assert decided == [
+        "baseline_lunarlander_visibility",
+        "pb2_acrobot",
+        "pb2_lunarlander",
+        "pb2_pendulum",
+    ]
+    for name in decided:
+        for part in FIGURES[name].files():
+            assert spec_data(FIGURES[name], part, "small")["seeds"] == MIN_SEEDS
 
 
 def test_a_claim_holds_only_when_its_interval_clears_the_bound():

@@ -56,15 +56,18 @@ def add_seeds(run: RunDir, seeds: int) -> None:
 def _same_chunk(old: Plan, new: Plan, index: int, run: RunDir) -> int:
     """The larger plan's index of ``old``'s chunk ``index``: the same trials on the same contexts."""
     ids = [old.trials[t].id for t in old.chunks[index]]
-    for j, members in enumerate(new.chunks):
-        if [new.trials[t].id for t in members] == ids:
-            if all(_same_contexts(old, new, old.trials[t]) for t in old.chunks[index]):
-                return j
-            break
-    raise SpecError(
-        f"{run.path}: chunk {index} ({', '.join(ids)}) is not a chunk of the plan with more seeds "
-        f"(batch_size {old.spec.batch_size} regroups its trials); start a new run with that count"
-    )
+    same = [j for j, chunk in enumerate(new.chunks) if [new.trials[t].id for t in chunk] == ids]
+    larger = f"the plan with {new.spec.seeds} seeds"
+    if not same:
+        raise SpecError(
+            f"{run.path}: chunk {index} ({', '.join(ids)}) is not a chunk of {larger} (batch_size "
+            f"{old.spec.batch_size} regroups its trials); start a new run with that count"
+        )
+    if not all(_same_contexts(old, new, old.trials[t]) for t in old.chunks[index]):
+        raise SpecError(
+            f"{run.path}: chunk {index}'s contexts differ in {larger}; start a new run with that count"
+        )
+    return same[0]
 
 
 def _same_contexts(old: Plan, new: Plan, trial) -> bool:
