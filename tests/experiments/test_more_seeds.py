@@ -60,7 +60,17 @@ def test_added_seeds_give_what_a_fresh_run_with_that_count_gives_even_after_a_cr
     pd.testing.assert_frame_equal(crashed.results()[COLUMNS], fresh.results()[COLUMNS])
 
 
-def test_seeds_are_not_added_where_chunks_would_regroup_or_the_count_does_not_grow(tmp_path):
+def test_chunks_that_stay_whole_take_more_seeds_and_ones_that_would_regroup_refuse(tmp_path):
+    """A chunk holding all of a variant's seeds stays whole: the larger plan takes its size and puts
+    the new seeds in chunks after it. A chunk of some seeds only would regroup: refused."""
+    whole = run(tmp_path / "whole", batch_size=16)  # [s0, s1] per variant
+    add_seeds(whole, 3)
+    assert (whole.spec().seeds, whole.spec().batch_size) == (3, 2)  # [s0, s1], [s2]
+    assert whole.finished() == {0, 2}
+    resume(whole.path, progress=False, report=False)
+    fresh = run(tmp_path / "fresh", seeds=3, batch_size=2)
+    pd.testing.assert_frame_equal(whole.results()[COLUMNS], fresh.results()[COLUMNS])
+
     batched = run(tmp_path / "batched", seeds=3, batch_size=2)  # [s0, s1], [s2] per variant
     files = sorted(p.name for p in (batched.path / "results").iterdir())
     with pytest.raises(SpecError, match=r"chunk 1 \(\S+-hidden-s2\) is not a chunk of the plan"):

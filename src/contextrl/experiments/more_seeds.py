@@ -30,8 +30,10 @@ CHUNK_FILES = (("results", "parquet"), ("curves", "parquet"), ("training", "parq
 
 def add_seeds(run: RunDir, seeds: int) -> None:
     """Raise ``run``'s seed count to ``seeds``; refused, before anything moves, where a kept chunk
-    would not be a chunk of the larger plan with the same contexts (trials batched several to a
-    chunk regroup), or where a chunk failed (retry it first)."""
+    would not be a chunk of the larger plan with the same contexts, or where a chunk failed (retry
+    it first). The larger plan keeps the run's batch size, or, where its chunks would regroup
+    there, takes the size of the run's largest chunk: a batch size at least the seed count put all
+    of a variant's seeds in one chunk, which then stays whole, the new seeds in chunks after it."""
     old = run.spec()
     if not isinstance(seeds, int) or isinstance(seeds, bool) or seeds <= old.seeds:
         raise SpecError(f"seeds: {seeds!r} for {run.path}; give an integer above its {old.seeds}")
@@ -39,9 +41,18 @@ def add_seeds(run: RunDir, seeds: int) -> None:
         raise SpecError(
             f"{run.path}: a chunk failed; resume the run to retry it before adding seeds"
         )
-    new = dataclasses.replace(old, seeds=seeds)
-    old_plan, new_plan = expand(old), expand(new)
-    moves = [[i, _same_chunk(old_plan, new_plan, i, run)] for i in sorted(run.finished())]
+    old_plan = expand(old)
+    largest = max((len(chunk) for chunk in old_plan.chunks), default=old.batch_size)
+    for batch_size in dict.fromkeys((old.batch_size, largest)):
+        new = dataclasses.replace(old, seeds=seeds, batch_size=batch_size)
+        try:
+            new_plan = expand(new)
+            moves = [[i, _same_chunk(old_plan, new_plan, i, run)] for i in sorted(run.finished())]
+            break
+        except SpecError as refusal:
+            error = refusal
+    else:
+        raise error
     timings = run.timings()
     journal = {
         "spec": spec_to_dict(new),
@@ -61,7 +72,7 @@ def _same_chunk(old: Plan, new: Plan, index: int, run: RunDir) -> int:
     if not same:
         raise SpecError(
             f"{run.path}: chunk {index} ({', '.join(ids)}) is not a chunk of {larger} (batch_size "
-            f"{old.spec.batch_size} regroups its trials); start a new run with that count"
+            f"{new.spec.batch_size} regroups its trials); start a new run with that count"
         )
     if not all(_same_contexts(old, new, old.trials[t]) for t in old.chunks[index]):
         raise SpecError(
