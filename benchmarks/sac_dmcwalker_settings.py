@@ -29,8 +29,7 @@ from contextrl.experiments import RunDir, resume, run_experiment  # noqa: E402
 
 # (row, what changes, SAC options): the paper's settings (agents/sac.py paper_config) are the
 # DmcWalker defaults; each row moves one to CleanRL's default.
-ROWS = [
-    ("paper", "the paper's settings", {}),
+ONE_CHANGE = [
     ("entropy", "entropy weight tuned (paper: fixed at 0.2)", {"autotune": True}),
     ("discount", "discount 0.99 (paper: 0.9)", {"gamma": 0.99}),
     ("one_step", "1-step returns (paper: 5-step)", {"n_step": 1}),
@@ -38,10 +37,14 @@ ROWS = [
     ("actor_lr", "actor learning rate 3e-4 (paper: 1e-3)", {"policy_lr": 3e-4}),
     ("tau", "target update rate 0.005 (paper: 0.001)", {"tau": 0.005}),
     ("actor_every_2", "an actor update every 2 (paper: every 4)", {"policy_frequency": 2}),
-    ("cleanrl", "CleanRL's defaults throughout", {}),  # filled in below from SACConfig
 ]
-# CleanRL's defaults are SACConfig's: every option a row above moves, at its class default.
-ROWS[-1][2].update({key: getattr(SACConfig, key) for _, _, row in ROWS[:-1] for key in row})
+# CleanRL's defaults are SACConfig's: every option a row moves, at its class default.
+CLEANRL = {key: getattr(SACConfig, key) for _, _, row in ONE_CHANGE for key in row}
+ROWS = [
+    ("paper", "the paper's settings", {}),
+    *ONE_CHANGE,
+    ("cleanrl", "CleanRL's defaults throughout", CLEANRL),
+]
 
 
 def spec(options: dict, timesteps: int) -> dict:
