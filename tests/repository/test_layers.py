@@ -40,15 +40,16 @@ LAYERS = [
 ]
 
 # Inside experiments, the order the modules build on each other (lowest first): specs, the protocol
-# record, their expansion into a plan of trials, running a chunk, run directories (starting Ray, and where Ray's output goes in
-# a run), reports, the protocols, executors, the runner, the commands around it, and the package that
-# registers the protocols.
+# record, their expansion into a plan of trials, running a chunk, run directories and more seeds for
+# one (starting Ray, and where Ray's output goes in a run), reports, the protocols, executors, the
+# runner, the commands around it, and the package that registers the protocols.
 EXPERIMENTS = [
     "spec",
     "protocol",
     "plan",
     "trials",
     "runs",
+    "more_seeds",
     "ray_cluster",
     "ray_output",
     "reports",
