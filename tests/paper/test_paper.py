@@ -325,19 +325,23 @@ def _write_chunk(run: RunDir, plan, chunk: int, value: float, random: float) -> 
 def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
     """DmcWalker's SAC with the paper's settings and with CleanRL's (batches twice as large) cost
     several times apart per step: the paper run's estimate takes the kept run of its own settings,
-    and another settings' run only where none of its own has finished."""
+    and another settings' run only where none of its own has finished. A run under way counts the
+    steps of its finished chunks, which its time was spent on."""
     kept, names = ROOT / PAPER_RUNS, ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl")
     runs = []
     for figure in names:
         folder = tmp_path / f"{figure}-small" / figure
-        folder.mkdir(parents=True)
-        for name in ("spec.yaml", "manifest.json"):
-            shutil.copy(kept / f"{figure}-small" / figure / name, folder / name)
+        shutil.copytree(kept / f"{figure}-small" / figure, folder)
         runs.append(RunDir(folder))
     own, other = runs
     paper = [parse_spec(spec_data(FIGURES[names[0]], names[0], "paper"))]
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(own) / training_steps(own.spec())
+    (own.path / "results" / "chunk-0000.parquet").unlink()  # as if stopped before its last chunk
+    plan = planned(own.spec())
+    left = own.spec().training_steps([plan.trials[i] for i in plan.chunks[0]])
+    rate, _ = seconds_per_step(paper, "paper", tmp_path)
+    assert rate == wall_seconds(own) / (training_steps(own.spec()) - left)
     shutil.rmtree(own.path)
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(other) / training_steps(other.spec())

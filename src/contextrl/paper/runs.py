@@ -239,7 +239,7 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
             if (
                 settings[:2] in agents
                 and "paper_machine" in run.manifest()
-                and training_steps(spec)
+                and trained_steps(run, spec)
             ):
                 runs.append((run, spec, settings))
     for same_settings in (True, False):
@@ -251,9 +251,17 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
             ]
             if measured:
                 seconds = sum(wall_seconds(run) for run, _ in measured)
-                steps = sum(training_steps(spec) for _, spec in measured)
+                steps = sum(trained_steps(run, spec) for run, spec in measured)
                 return seconds / steps, machines(run for run, _ in measured)
     return None
+
+
+def trained_steps(run: RunDir, spec) -> int:
+    """Training steps of the run's finished chunks: the time a run under way (a full run stopped
+    part-way, or one given more seeds) has spent trained these, not its whole plan."""
+    plan, done = planned(spec), run.finished()
+    chunks = [chunk for n, chunk in enumerate(plan.chunks) if n in done]
+    return spec.training_steps([plan.trials[i] for chunk in chunks for i in chunk])
 
 
 def _agent_settings(spec) -> tuple[str, str, str]:
