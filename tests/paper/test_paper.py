@@ -31,7 +31,13 @@ from contextrl.paper.checks import (
     _zone,
 )
 from contextrl.paper.plans import planned, training_steps
-from contextrl.paper.runs import _add_catalogue_seeds, plan_text, seconds_per_step, wall_seconds
+from contextrl.paper.runs import (
+    _add_catalogue_seeds,
+    machines,
+    plan_text,
+    seconds_per_step,
+    wall_seconds,
+)
 from tests.helpers import ROOT
 from tests.helpers.report_tables import check_report
 
@@ -345,6 +351,13 @@ def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
     shutil.rmtree(own.path)
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(other) / training_steps(other.spec())
+    # PB2 on Pendulum trains SAC members one to a process: not at the rate of vmapped SAC agents
+    for figure in ("visibility_pendulum-paper", "pb2_pendulum-small"):
+        shutil.copytree(kept / figure, tmp_path / figure, ignore=shutil.ignore_patterns("ray"))
+    pb2 = FIGURES["pb2_pendulum"]
+    specs = [parse_spec(spec_data(pb2, part, "paper")) for part in pb2.files()]
+    _, machine = seconds_per_step(specs, "paper", tmp_path)
+    assert machine == machines([RunDir(tmp_path / "pb2_pendulum-small" / p) for p in pb2.files()])
 
 
 def _differences(evidence: str) -> dict[str, tuple[float, float, float]]:

@@ -265,9 +265,12 @@ def trained_steps(run: RunDir, spec) -> int:
 
 
 def _agent_settings(spec) -> tuple[str, str, str]:
-    """The environment, the agent and its options other than the budget, comparable as text."""
+    """The environment, the agent and its options other than the budget, comparable as text. A PB2
+    population's members train one to a process, not many in one vmapped call, so they count as an
+    agent of their own: a step costs them another time."""
     options = {k: v for k, v in spec.agent_options.items() if k != "total_timesteps"}
-    return spec.env, spec.agent, repr(sorted(options.items()))
+    agent = f"{spec.agent} in PB2" if spec.protocol == "hpo" else spec.agent
+    return spec.env, agent, repr(sorted(options.items()))
 
 
 @dataclasses.dataclass(frozen=True)
