@@ -235,23 +235,21 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
             run = RunDir(spec_file.parent)
             spec = parsed_spec(spec_file.read_text(encoding="utf-8"))
             settings = _agent_settings(spec)
-            # the same environment and agent, its `contextrl paper run` ended, and it trained
-            if (
-                settings[:2] in agents
-                and "paper_machine" in run.manifest()
-                and trained_steps(run, spec)
-            ):
-                runs.append((run, spec, settings))
+            if settings[:2] not in agents or "paper_machine" not in run.manifest():
+                continue  # another environment or agent, or its `contextrl paper run` never ended
+            steps = trained_steps(run, spec)
+            if steps:
+                runs.append((run, steps, settings))
     for same_settings in (True, False):
         for runs in finished.values():
             measured = [
-                (run, spec)
-                for run, spec, settings in runs
+                (run, steps)
+                for run, steps, settings in runs
                 if settings in wanted or not same_settings
             ]
             if measured:
                 seconds = sum(wall_seconds(run) for run, _ in measured)
-                steps = sum(trained_steps(run, spec) for run, spec in measured)
+                steps = sum(steps for _, steps in measured)
                 return seconds / steps, machines(run for run, _ in measured)
     return None
 
