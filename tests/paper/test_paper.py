@@ -265,7 +265,7 @@ def test_a_run_under_way_has_no_verdict_once_an_agent_with_every_seed_trained_di
     assert figure.check.settled({figure.name: run}) is None
     finish(4, 25.0)  # mean 20.6: short of 20 + 10% of 20
     settled = figure.check.settled({figure.name: run})
-    assert settled.word == "no verdict" and settled.holds is None
+    assert settled.word == "no verdict" and settled.gate_only
     assert settled.withheld == "the agent did not learn at this budget: hidden"
     assert "hidden 20.6 vs 20, over 5 seeds each, all trained" in settled.evidence
     section = results_page(tmp_path).split(f"## {figure.name}\n")[1].split("\n## ")[0]

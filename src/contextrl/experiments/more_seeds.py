@@ -22,7 +22,7 @@ import yaml
 
 from contextrl.experiments.plan import Plan, expand
 from contextrl.experiments.runs import RunDir, write_text
-from contextrl.experiments.spec import SpecError, spec_to_dict
+from contextrl.experiments.spec import CommonSpec, SpecError, spec_to_dict
 
 JOURNAL = "adding-seeds.json"
 CHUNK_FILES = (("results", "parquet"), ("curves", "parquet"), ("training", "parquet"))
@@ -41,18 +41,7 @@ def add_seeds(run: RunDir, seeds: int) -> None:
         raise SpecError(
             f"{run.path}: a chunk failed; resume the run to retry it before adding seeds"
         )
-    old_plan = expand(old)
-    largest = max((len(chunk) for chunk in old_plan.chunks), default=old.batch_size)
-    for batch_size in dict.fromkeys((old.batch_size, largest)):
-        new = dataclasses.replace(old, seeds=seeds, batch_size=batch_size)
-        try:
-            new_plan = expand(new)
-            moves = [[i, _same_chunk(old_plan, new_plan, i, run)] for i in sorted(run.finished())]
-            break
-        except SpecError as refusal:
-            error = refusal
-    else:
-        raise error
+    new, moves = _renumbering(run, old, seeds)
     timings = run.timings()
     journal = {
         "spec": spec_to_dict(new),
@@ -62,6 +51,24 @@ def add_seeds(run: RunDir, seeds: int) -> None:
     }
     write_text(run.path / JOURNAL, json.dumps(journal, indent=2))
     finish_adding_seeds(run)
+
+
+def _renumbering(run: RunDir, old: CommonSpec, seeds: int) -> tuple[CommonSpec, list[list[int]]]:
+    """The larger spec and, per finished chunk, [its index, its index in the larger plan]: with the
+    run's batch size, else with its largest chunk's; the first size's refusal where neither fits."""
+    old_plan = expand(old)
+    largest = max((len(chunk) for chunk in old_plan.chunks), default=old.batch_size)
+    refusals = []
+    for batch_size in dict.fromkeys((old.batch_size, largest)):
+        new = dataclasses.replace(old, seeds=seeds, batch_size=batch_size)
+        try:
+            new_plan = expand(new)
+            return new, [
+                [i, _same_chunk(old_plan, new_plan, i, run)] for i in sorted(run.finished())
+            ]
+        except SpecError as refusal:
+            refusals.append(refusal)
+    raise refusals[0]
 
 
 def _same_chunk(old: Plan, new: Plan, index: int, run: RunDir) -> int:

@@ -44,11 +44,13 @@ GATE = (
 class Verdict:
     """Whether a claim holds at the budget it ran at (None: the intervals do not decide it), or,
     where ``withheld`` says why, no verdict at all: the evidence and what its intervals alone would
-    say (``holds``) are then shown, not judged."""
+    say (``holds``) are then shown, not judged. ``gate_only``: withheld by the learnability gate on
+    runs under way, before any interval was computed (``holds`` says nothing then)."""
 
     holds: bool | None
     evidence: str
     withheld: str = ""
+    gate_only: bool = False
 
     @property
     def word(self) -> str:
@@ -154,7 +156,7 @@ class Check:
 def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
     """No verdict, whatever the unfinished chunks give, when the agents of a variant and kind whose
     chunks have all finished did not beat a random policy at their training contexts; else None.
-    The intervals are not computed (the variants to come are missing), so ``holds`` is None."""
+    The intervals are not computed (the variants to come are missing): a ``gate_only`` verdict."""
     waiting, frames = set(), []
     for run in runs.values():
         spec = run.spec()
@@ -180,6 +182,7 @@ def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
         f"{learned_}, over {' or '.join(map(str, seeds))} seeds each, all trained (the "
         "unfinished chunks train other agents)",
         f"the agent did not learn at this budget: {', '.join(failed)}",
+        gate_only=True,
     )
 
 

@@ -180,7 +180,7 @@ def _settled(figure: PaperFigure, root: str | Path) -> str:
     verdict = figure.check.settled(runs) if runs else None
     if verdict is None:
         return ""
-    if verdict.holds is None:  # the learnability gate alone: no interval without the rest
+    if verdict.gate_only:
         return (
             f" **Already no verdict** ({verdict.withheld}), whatever the unfinished chunks give: "
             f"{verdict.evidence}."

@@ -257,9 +257,13 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
 def trained_steps(run: RunDir, spec) -> int:
     """Training steps of the run's finished chunks: the time a run under way (a full run stopped
     part-way, or one given more seeds) has spent trained these, not its whole plan."""
-    plan, done = planned(spec), run.finished()
-    chunks = [chunk for n, chunk in enumerate(plan.chunks) if n in done]
-    return spec.training_steps([plan.trials[i] for chunk in chunks for i in chunk])
+    plan = planned(spec)
+    return spec.training_steps(_trials_of(plan, run.finished()))
+
+
+def _trials_of(plan, chunks: set[int]) -> list:
+    """The plan's trials in the chunks numbered ``chunks``."""
+    return [plan.trials[i] for n, chunk in enumerate(plan.chunks) if n in chunks for i in chunk]
 
 
 def _agent_settings(spec) -> tuple[str, str, str]:
@@ -297,7 +301,7 @@ def progress(
         else:
             spec, done = parse_spec(_new_part(figure, part, scale, batch_size)), set()
         plan = planned(spec)
-        todo = [i for n, chunk in enumerate(plan.chunks) if n not in done for i in chunk]
+        left = set(range(len(plan.chunks))) - done
         parts.append(
             PartProgress(
                 part,
@@ -306,7 +310,7 @@ def progress(
                 len(plan.chunks),
                 len(done),
                 spec.training_steps(plan.trials),
-                spec.training_steps([plan.trials[i] for i in todo]),
+                spec.training_steps(_trials_of(plan, left)),
             )
         )
     return parts
