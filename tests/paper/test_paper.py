@@ -307,6 +307,10 @@ def test_a_figure_whose_full_budget_does_not_fit_is_decided_at_the_small_budget(
         "mean test return hidden − concat_all = 200 ["
     ) in section
     assert "hidden -98, concat_all -298; trained vs random return" in section  # -100 + 0..4
+    assert (
+        "On a Ray cluster, from one of its machines: `contextrl paper run pb2_acrobot --scale "
+        "paper --executor ray --address auto`"
+    ) in section
 
 
 def _write_chunk(run: RunDir, plan, chunk: int, value: float, random: float) -> None:

@@ -156,10 +156,23 @@ def results_page(root: str | Path) -> str:
                 f"- **At {full}**: {paper}.{_settled(figure, root)}"
                 if paper
                 else f"- **At {full}**: not run; {estimate(figure, 'paper', root)}."
+                + _on_a_cluster(figure)
             )
         lines.append("")
     lines += NOT_COVERED
     return "\n".join(lines)
+
+
+def _on_a_cluster(figure: PaperFigure) -> str:
+    """For a figure whose full budget does not fit two CPU cores: the command that spreads its
+    chunks over a Ray cluster."""
+    if not figure.decided_small:
+        return ""
+    return (
+        f" On a Ray cluster, from one of its machines: `contextrl paper run {figure.name} --scale "
+        "paper --executor ray --address auto` (its chunks spread over the cluster's workers; "
+        "[Executors and Ray clusters](experiments.md#executors-and-ray-clusters))."
+    )
 
 
 def _under_way(figure: PaperFigure, root: str | Path, scale: str) -> str:
