@@ -249,16 +249,15 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
             ]
             if measured:
                 seconds = sum(wall_seconds(run) for run, _ in measured)
-                steps = sum(steps for _, steps in measured)
-                return seconds / steps, machines(run for run, _ in measured)
+                total = sum(steps for _, steps in measured)
+                return seconds / total, machines(run for run, _ in measured)
     return None
 
 
 def trained_steps(run: RunDir, spec) -> int:
     """Training steps of the run's finished chunks: the time a run under way (a full run stopped
     part-way, or one given more seeds) has spent trained these, not its whole plan."""
-    plan = planned(spec)
-    return spec.training_steps(_trials_of(plan, run.finished()))
+    return spec.training_steps(_trials_of(planned(spec), run.finished()))
 
 
 def _trials_of(plan, chunks: set[int]) -> list:
