@@ -360,6 +360,9 @@ def test_registry_errors_and_carl_ids():
         crl.make("CartPol")
     with pytest.raises(ValueError, match="max_steps must be a positive integer"):
         crl.make("CartPole", max_steps=0)
+    with pytest.raises(ValueError, match=r"at most 2,147,483,647 \(the step counter is int32\)"):
+        crl.make("CartPole", max_steps=10**12)
+    assert crl.make("CartPole", max_steps=2**31 - 1).max_steps == 2**31 - 1
 
 
 def test_a_batched_value_makes_a_batch(cartpole):

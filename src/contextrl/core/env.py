@@ -95,6 +95,10 @@ class ContextHelpers:
         return self.context_space.make(**values)
 
 
+# The largest time limit the compiled step counter (int32) holds.
+MAX_STEPS_LIMIT = 2**31 - 1
+
+
 @dataclasses.dataclass(frozen=True)
 class Env(ContextHelpers):
     """Base of every JAX environment: static configuration only, pure functions of (key, state, context).
@@ -117,8 +121,11 @@ class Env(ContextHelpers):
             object.__setattr__(self, "max_steps", self.default_max_steps)
         if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
             raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
-        if self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        if not 1 <= self.max_steps <= MAX_STEPS_LIMIT:
+            raise ValueError(
+                f"max_steps must be a positive integer of at most {MAX_STEPS_LIMIT:,} (the step "
+                f"counter is int32), got {self.max_steps!r}"
+            )
         for name in self.obs_context.features:
             self.context_space.resolve(name)
 
