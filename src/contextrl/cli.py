@@ -8,10 +8,12 @@ from the feature declarations, so the CLI, the docs and the code cannot disagree
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 import json
+import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -287,52 +289,78 @@ def record(
     contexts: Sequence[dict[str, Any]],
     steps: int,
     seed: int,
-) -> list[np.ndarray]:
+) -> Iterator[np.ndarray]:
     """Frames of one rollout per context, side by side, all driven by the same random actions.
 
     Every panel starts from the same seed and receives the same action sequence, so what differs
-    between panels is the context alone. An episode that ends restarts in place.
+    between panels is the context alone. An episode that ends restarts in place. The frames come one
+    at a time, so a caller can size the first before the rest are drawn.
     """
     from contextrl.gymnasium import ContextualGymEnv
     from contextrl.render import renderer_for, union_box
     from contextrl.render.animation import side_by_side
 
     envs = [ContextualGymEnv(env_id, contexts=c or None, render_mode="rgb_array") for c in contexts]
-    if not crl.spec(env_id).host and not hasattr(envs[0].contextrl_env, "render_state"):
-        renderer = renderer_for(envs[0].contextrl_env)
-        box = union_box(
-            [
-                renderer.world_box(env.context_space.make(**c))
-                for env, c in zip(envs, contexts, strict=True)
-            ]
+    try:
+        if not crl.spec(env_id).host and not hasattr(envs[0].contextrl_env, "render_state"):
+            renderer = renderer_for(envs[0].contextrl_env)
+            box = union_box(
+                [
+                    renderer.world_box(env.context_space.make(**c))
+                    for env, c in zip(envs, contexts, strict=True)
+                ]
+            )
+            for env in envs:
+                env.render_world_box = box
+        for env in envs:
+            env.reset(seed=seed)
+        envs[0].action_space.seed(seed)
+        labels = [
+            ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.items())
+            for c in contexts
+        ]
+        labels = labels if len(envs) > 1 else []
+        yield side_by_side([env.render() for env in envs], labels)
+        for _ in range(steps):
+            action = envs[0].action_space.sample()
+            for env in envs:
+                _, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()
+            yield side_by_side([env.render() for env in envs], labels)
+    finally:
+        for env in envs:
+            env.close()
+
+
+def available_memory() -> int:
+    """Bytes of memory free for new frames (all of it where the system cannot say what is free)."""
+    name = "SC_AVPHYS_PAGES" if "SC_AVPHYS_PAGES" in os.sysconf_names else "SC_PHYS_PAGES"
+    return os.sysconf(name) * os.sysconf("SC_PAGE_SIZE")
+
+
+# A GIF's frame is held three times while it is written: the array, its Pillow image and Pillow's
+# palette copy (one byte a pixel), rounded up.
+FRAME_COPIES = 3
+
+
+def check_frames_fit(first: np.ndarray, steps: int) -> None:
+    """Refuse ``--steps`` whose frames, the size of ``first``, cannot all be held in memory."""
+    per_frame = FRAME_COPIES * first.nbytes
+    largest = available_memory() // per_frame - 1
+    if steps > largest:
+        raise ContextError(
+            f"--steps {steps}: {steps + 1:,} frames of {first.shape[1]}×{first.shape[0]} pixels "
+            f"need {(steps + 1) * per_frame / 1e9:,.1f} GB, more than the memory free; at most "
+            f"--steps {max(largest, 0):,} fit here"
         )
-        for env in envs:
-            env.render_world_box = box
-    for env in envs:
-        env.reset(seed=seed)
-    envs[0].action_space.seed(seed)
-    labels = [
-        ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.items())
-        for c in contexts
-    ]
-    frames = [side_by_side([env.render() for env in envs], labels if len(envs) > 1 else ())]
-    for _ in range(steps):
-        action = envs[0].action_space.sample()
-        for env in envs:
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        frames.append(side_by_side([env.render() for env in envs], labels if len(envs) > 1 else ()))
-    for env in envs:
-        env.close()
-    return frames
 
 
 def run_render(args: argparse.Namespace) -> int:
     from contextrl.gymnasium.env import render_fps
     from contextrl.render.animation import animation_format, write_animation
 
-    animation_format(args.out)  # an unknown suffix is refused before anything renders
+    still = animation_format(args.out) == ".png"  # an unknown suffix is refused before rendering
     folder = Path(args.out).parent
     if not folder.is_dir():  # a typo in the folder is refused, not created
         raise ContextError(
@@ -357,10 +385,15 @@ def run_render(args: argparse.Namespace) -> int:
         raise ContextError(f"--steps must be >= 0, got {args.steps}")
     if args.fps is not None and args.fps < 1:
         raise ContextError(f"--fps must be >= 1, got {args.fps}")
-    frames = record(env_id, contexts, args.steps, args.seed)
+    steps = 0 if still else args.steps  # a still is the first frame: nothing to step
+    with contextlib.closing(record(env_id, contexts, steps, args.seed)) as drawing:
+        first = next(drawing)
+        check_frames_fit(first, steps)  # before the rest are drawn
+        frames = [first, *drawing]
     fps = args.fps or render_fps(crl.spec(env_id).factory())
     path = write_animation(frames, args.out, fps)
-    print(f"wrote {path} ({len(frames)} frames, {len(contexts)} panel(s))")
+    drawn = "a still of the first frame" if still else f"{len(frames)} frames"
+    print(f"wrote {path} ({drawn}, {len(contexts)} panel(s))")
     return 0
 
 
@@ -386,7 +419,9 @@ def add_render(subparsers) -> None:
     parser.add_argument(
         "--out", default="render.gif", help="output: .gif (animation) or .png (first frame)"
     )
-    parser.add_argument("--steps", type=int, default=100, help="steps to animate (random actions)")
+    parser.add_argument(
+        "--steps", type=int, default=100, help="steps to animate (random actions; .gif only)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of start states and actions")
     parser.add_argument(
         "--fps", type=int, default=None, help="frames per second (default: real time)"

@@ -234,6 +234,33 @@ def test_render_refuses_a_missing_folder(tmp_path, capsys):
     assert not (tmp_path / "typo").exists()
 
 
+def test_render_refuses_more_frames_than_memory_holds(tmp_path, capsys, monkeypatch):
+    """Before: ``--steps 100000000`` drew frames until the process was killed for memory."""
+    from contextrl import cli as cli_module
+
+    frame = 600 * 400 * 3  # CartPole's frame, in bytes
+    monkeypatch.setattr(
+        cli_module, "available_memory", lambda: cli_module.FRAME_COPIES * frame * 11
+    )
+    target = tmp_path / "x.gif"
+    status, _, err = cli(capsys, "render", "CartPole", "--steps", "100000000", "--out", target)
+    one_line_error(status, err, "--steps 100000000", "600×400", "at most --steps 10 fit")
+    assert not target.exists()
+    status, out, _ = cli(capsys, "render", "CartPole", "--steps", "10", "--out", target)
+    assert status == 0 and "11 frames" in out
+
+
+def test_a_png_is_one_frame_and_says_so(tmp_path, capsys):
+    """Before: a still of a two-panel grid reported "101 frames" (and drew them all)."""
+    target = tmp_path / "grid.png"
+    status, out, _ = cli(capsys, "render", "CartPole", "--grid", "length=0.5,1", "--out", target)
+    assert status == 0 and "a still of the first frame, 2 panel(s)" in out, out
+    from PIL import Image
+
+    with Image.open(target) as still:
+        assert still.width > 2 * 600  # both panels, side by side
+
+
 # ---- --version, python -m contextrl, one-seed intervals, third-party noise ---------------------
 def test_version_and_python_dash_m(tmp_path):
     import contextrl
