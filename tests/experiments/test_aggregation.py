@@ -317,6 +317,44 @@ def test_sensitivity_table_has_every_variant_and_names_what_ran(tmp_path):
     assert float(default["mean_return"].iloc[0]) == 200.5  # the table's A = 1 for gated
 
 
+def test_one_seed_sensitivity_ecdf_draws_every_magnitude(tmp_path, monkeypatch):
+    """Before: with one seed every panel was empty (a one-value eCDF drew no line), the default
+    context (A = 1) was left out and the colour bar ran 0-0.5, one colour for every curve."""
+    drawn = []
+
+    def keep(figure, dpi=100) -> bytes:
+        drawn.append(figure)
+        return b""
+
+    monkeypatch.setattr(plots, "to_png", keep)
+    spec, run = make_run(
+        tmp_path,
+        "run",
+        {
+            "protocol": "sensitivity",
+            "seeds": 1,
+            "features": ["length", "gravity"],
+            "magnitudes": [0.5, 1.0],
+            "variants": ["hidden"],
+        },
+    )
+    # contexts: the default (A = 1), length × 0.5, gravity × 0.5
+    write_parquet(run.result_path(0), result_rows(spec, {"default-hidden-s0": [100, 40, 70]}))
+    report(run.path)
+    (ecdf,) = [f for f in drawn if any(a.get_title() == "gravity" for a in f.axes)]
+    panels = [axis for axis in ecdf.axes if axis.get_title() in ("length", "gravity")]
+    assert len(panels) == 2
+    for axis in panels:
+        lines = axis.get_lines()
+        assert [line.get_label() for line in lines] == ["A=0.5", "A=1"]
+        for line in lines:
+            assert np.ptp(line.get_ydata()) == 1.0  # a one-value eCDF: one step from 0 to 1
+        assert lines[0].get_color() != lines[1].get_color()
+    assert [line.get_xdata()[0] for line in panels[0].get_lines()] == [40, 100]
+    (colour_bar,) = [axis for axis in ecdf.axes if axis not in panels and axis.get_ylabel()]
+    assert colour_bar.get_ylim() == (0.5, 1.0)
+
+
 @pytest.mark.usefixtures("unrendered")
 def test_visibility_report_states_one_value_per_statistic(tmp_path):
     spec, run = make_run(

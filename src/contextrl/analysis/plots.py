@@ -57,12 +57,17 @@ def ecdf_values(values) -> tuple[np.ndarray, np.ndarray]:
     return x, np.arange(1, x.size + 1) / x.size
 
 
+def _ecdf_line(axis, values, **style) -> None:
+    """An eCDF drawn from 0 at its smallest value, so one value is a visible step, not a point."""
+    x, y = ecdf_values(values)
+    axis.step(np.r_[x[:1], x], np.r_[0.0, y], where="post", **style)
+
+
 def ecdf(returns_by_label: Mapping[str, Sequence[float]], title: str = "", xlabel: str = "return"):
     """One eCDF line per label (further right is better)."""
     figure, axis = _subplots(figsize=(5, 3.5))
     for label, values in returns_by_label.items():
-        x, y = ecdf_values(values)
-        axis.step(x, y, where="post", label=str(label))
+        _ecdf_line(axis, values, label=str(label))
     axis.set(xlabel=xlabel, ylabel="proportion", title=title, ylim=(0, 1.02))
     axis.legend(fontsize="small")
     axis.grid(alpha=0.3)
@@ -85,20 +90,21 @@ def sensitivity_ecdfs(returns: Mapping[str, Mapping[float, Sequence[float]]], ti
     )
     matplotlib = _matplotlib()
     cmap = matplotlib.colormaps["viridis"]
+    # one scale for every panel and the colour bar: from the smallest magnitude to the largest
+    every = [magnitude for by_magnitude in returns.values() for magnitude in by_magnitude]
+    norm = matplotlib.colors.Normalize(min(every), max(every))
+    if norm.vmin == norm.vmax:
+        norm = matplotlib.colors.Normalize(norm.vmin - 0.5, norm.vmax + 0.5)
     for axis, name in zip(axes.ravel(), features, strict=False):
-        magnitudes = sorted(returns[name])
-        top = max(magnitudes[-1], 1e-9)
-        for magnitude in magnitudes:
-            x, y = ecdf_values(returns[name][magnitude])
-            axis.step(x, y, where="post", color=cmap(magnitude / top), label=f"A={magnitude:g}")
+        for magnitude in sorted(returns[name]):
+            style = {"color": cmap(norm(magnitude)), "label": f"A={magnitude:g}"}
+            _ecdf_line(axis, returns[name][magnitude], **style)
         axis.set(title=name, xlabel="return", ylim=(0, 1.02))
         axis.grid(alpha=0.3)
     for axis in axes.ravel()[len(features) :]:
         axis.axis("off")
     axes[0, 0].set_ylabel("proportion")
-    mappable = matplotlib.cm.ScalarMappable(
-        cmap=cmap, norm=matplotlib.colors.Normalize(0, max(max(r) for r in returns.values()))
-    )
+    mappable = matplotlib.cm.ScalarMappable(cmap=cmap, norm=norm)
     figure.colorbar(mappable, ax=axes, label="magnitude A (× default)", shrink=0.8)
     if title:
         figure.suptitle(title)

@@ -150,8 +150,13 @@ def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) ->
         )
         for feature, lines in by_feature.items()
     ]
+    # the default context is A = 1 of every feature: each panel runs from the smallest A to the largest
+    default = cells.loc[cells["feature"] == DEFAULT_LABEL, "return"].dropna().to_numpy()
     returns = {
-        feature: {m: group["return"].dropna().to_numpy() for m, group in rows.groupby("magnitude")}
+        feature: {
+            1.0: default,
+            **{m: group["return"].dropna().to_numpy() for m, group in rows.groupby("magnitude")},
+        }
         for feature, rows in cells.groupby("feature", sort=False)
         if feature != DEFAULT_LABEL
     }
@@ -159,7 +164,8 @@ def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) ->
         figure(
             "sensitivity-ecdf",
             plots.sensitivity_ecdfs(returns),
-            "eCDF of test returns per feature and magnitude A (the scaled contexts only)",
+            "eCDF of test returns per feature and magnitude A (A = 1: the default context)"
+            + ("; with one seed a line is one return, a single step" if spec.seeds == 1 else ""),
         )
     )
     _, skipped = spec.scaled_values()
