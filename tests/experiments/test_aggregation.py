@@ -19,7 +19,7 @@ from contextrl.experiments import RunDir, expand, parse_spec, report
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.runs import write_parquet
 from tests.helpers.constructed_results import result_rows
-from tests.helpers.report_tables import point, read_sections, row
+from tests.helpers.report_tables import check_one_statement, point, read_sections, row
 
 REPS = 50  # bootstrap replicates: the intervals' width is not under test, only their sameness
 
@@ -91,6 +91,35 @@ def optgap_run(tmp_path, name: str, shift: float = 0.0):
     spec, run = make_run(tmp_path, name, OPTGAP)
     write_parquet(run.result_path(0), result_rows(spec, optgap_returns(shift)))
     return spec, run
+
+
+def test_one_seed_optimality_gap_says_no_interval_everywhere(tmp_path, monkeypatch):
+    """Before: the table said "(no interval with one seed)" while the text printed the gap as
+    ``-46.87 [-77.1, -11.3]`` and the figure titled "no interval" drew interval bars."""
+    drawn = []
+
+    def keep(figure, dpi=100) -> bytes:
+        drawn.append(figure)
+        return b""
+
+    monkeypatch.setattr(plots, "to_png", keep)
+    spec, run = make_run(tmp_path, "run", {**OPTGAP, "seeds": 1, "variants": ["hidden"]})
+    returns = {"general-hidden-s0": GENERAL[0]}
+    returns |= {f"specialist{i}-hidden-s0": [SPECIALISTS[0, i]] for i in range(3)}
+    write_parquet(run.result_path(0), result_rows(spec, returns))
+    gap = sections(run.path)["Optimality gap (hidden)"]
+    assert row(gap["tables"]["Aggregates"], agent="general")["mean"] == (
+        "3 (no interval with one seed)"
+    )
+    assert not any(re.search(r"\[-?\d", line) for line in gap["text"]), gap["text"]
+    # specialists (4, 5, 9) − general (1, 3, 5): (3 + 2 + 4) / 3 = 3
+    assert "= 3 (no interval with one seed)" in " ".join(gap["text"])
+    assert check_one_statement("Optimality gap (hidden)", gap) == 1
+    (figure,) = [f for f in drawn if f._suptitle and "Aggregate return" in f._suptitle.get_text()]
+    assert figure._suptitle.get_text() == "Aggregate return (no interval with one seed)"
+    for axis in figure.axes:
+        assert not axis.patches  # no interval bar
+        assert len(axis.collections) == 2  # a point mark per agent
 
 
 @pytest.mark.usefixtures("unrendered")

@@ -8,6 +8,7 @@ fails :func:`check_report` until it has its check.
 from __future__ import annotations
 
 import html.parser
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ NOT_FROM_RESULTS = {
 
 
 class Report(html.parser.HTMLParser):
-    """Sections of a report: title → {"text": [...], "warnings": [...], "tables": {caption: rows}}."""
+    """Sections of a report: title → {"text": [...], "warnings": [...], "tables": {caption: rows},
+    "figures": [caption, ...]}."""
 
     def __init__(self, text: str):
         super().__init__()
@@ -45,12 +47,14 @@ class Report(html.parser.HTMLParser):
         text = self._buffer
         if tag == "h2":
             self._section = self.sections.setdefault(
-                text, {"text": [], "warnings": [], "tables": {}}
+                text, {"text": [], "warnings": [], "tables": {}, "figures": []}
             )
         elif tag == "p":
             self._section["warnings" if self._warning else "text"].append(text)
         elif tag == "caption":
             self._table["caption"] = text
+        elif tag == "figcaption":
+            self._section["figures"].append(text)
         elif tag in ("td", "th"):
             self._row.append(text)
         elif tag == "tr":
@@ -247,6 +251,29 @@ def _check_progress(rows: list[dict], results: pd.DataFrame) -> int:
     return 1
 
 
+ONE_SEED = "(no interval with one seed)"
+INTERVAL = re.compile(r"\[-?[\d.]+(e[+-]?\d+)?, -?[\d.]+(e[+-]?\d+)?\]|95% (bootstrap )?CI")
+
+
+def check_one_statement(title: str, section: dict) -> int:
+    """A section whose interval cells all say there is no interval (one seed) shows none in its
+    text or figure captions either: one statement wherever the statistic appears."""
+    cells = [
+        value
+        for caption, rows in section["tables"].items()
+        for r in rows
+        for column, value in r.items()
+        if column in ("mean", "median", "IQM", "mean return")
+    ]
+    if not cells or not all(ONE_SEED in value for value in cells):
+        return 0
+    for line in [*section["text"], *section["figures"]]:
+        assert not INTERVAL.search(line), (
+            f"{title}: the tables say {ONE_SEED}, this shows one: {line}"
+        )
+    return 1
+
+
 def check_report(out: str | Path) -> int:
     """Assert that every table of ``out/report.html`` equals a direct computation from the run's
     results; returns how many values were checked."""
@@ -255,6 +282,7 @@ def check_report(out: str | Path) -> int:
     sections = read_sections(out / "report.html")
     checked = 0
     for title, section in sections.items():
+        checked += check_one_statement(title, section)
         for caption, rows in section["tables"].items():
             if caption in NOT_FROM_RESULTS:
                 continue

@@ -158,7 +158,9 @@ def intervals(results: Mapping[str, Mapping[str, Interval]], title: str = ""):
     for axis, metric in zip(axes[0], metrics, strict=True):
         for row, label in enumerate(labels):
             interval = results[label][metric]
-            axis.barh(row, interval.high - interval.low, left=interval.low, height=0.6, alpha=0.6)
+            if interval.high > interval.low:  # a point alone (no interval) has no bar
+                width = interval.high - interval.low
+                axis.barh(row, width, left=interval.low, height=0.6, alpha=0.6)
             axis.vlines(interval.point, row - 0.3, row + 0.3, color="black")
         axis.set_yticks(range(len(labels)), labels if axis is axes[0, 0] else [""] * len(labels))
         axis.set_title(metric)

@@ -193,9 +193,7 @@ def score_intervals(
     def shown(name: str, metric: str) -> str:
         if name not in intervals:
             return "no result"
-        if scores[name].matrix.shape[0] == 1:  # resampling one seed gives a zero-width interval
-            return f"{intervals[name][metric].point:.4g} ({ONE_SEED})"
-        return str(intervals[name][metric])
+        return stated(intervals[name][metric], {name: scores[name]})
 
     rows = [
         {
@@ -211,12 +209,38 @@ def score_intervals(
 ONE_SEED = "no interval with one seed"
 
 
+def has_interval(scores: Mapping[str, Scores]) -> bool:
+    """Whether a statistic of ``scores`` gets an interval: some agent has several seeds. A bootstrap
+    over one seed says nothing of another seed's training, which a "95% CI" would present as known."""
+    return any(s.matrix.shape[0] > 1 for s in scores.values())
+
+
+def stated(interval: Interval, scores: Mapping[str, Scores]) -> str:
+    """A statistic of ``scores`` as every table and text prints it: ``point [low, high]``, or the
+    point and ``(no interval with one seed)``."""
+    return str(interval) if has_interval(scores) else f"{interval.point:.4g} ({ONE_SEED})"
+
+
+def interval_words(scores: Mapping[str, Scores], contexts: str) -> str:
+    """``95% CI over …`` naming what was resampled, or ``no interval with one seed``."""
+    return f"95% CI over {design_words(scores, contexts)}" if has_interval(scores) else ONE_SEED
+
+
 def interval_title(title: str, scores: Mapping[str, Scores], contexts: str) -> str:
-    """``title (95% CI over …)`` naming what was resampled, or ``title (no interval with one
-    seed)`` when every agent has one seed: a bootstrap over one seed is zero wide, which a "95% CI"
-    label would present as certainty."""
-    several = any(s.matrix.shape[0] > 1 for s in scores.values())
-    return f"{title} ({f'95% CI over {design_words(scores, contexts)}' if several else ONE_SEED})"
+    """``title (95% CI over …)`` or ``title (no interval with one seed)``."""
+    return f"{title} ({interval_words(scores, contexts)})"
+
+
+def drawn_intervals(
+    intervals: Mapping[str, Mapping[str, Interval]], scores: Mapping[str, Scores]
+) -> dict[str, dict[str, Interval]]:
+    """The intervals a figure draws: an agent with one seed as its point alone, with no bar."""
+    return {
+        name: dict(by_metric)
+        if has_interval({name: scores[name]})
+        else {metric: Interval(i.point, i.point, i.point) for metric, i in by_metric.items()}
+        for name, by_metric in intervals.items()
+    }
 
 
 def missing_rows(scores: Mapping[str, Scores]) -> list[dict]:

@@ -19,6 +19,7 @@ from contextrl.analysis.intervals import SAMPLED
 from contextrl.analysis.report import Section, render
 from contextrl.analysis.scores import (
     agent_label,
+    drawn_intervals,
     interval_title,
     magnitude_lines,
     missing_rows,
@@ -138,7 +139,7 @@ def compare_runs(
     figures = [
         figure(
             "compare-intervals",
-            plots.intervals(cis),
+            plots.intervals(drawn_intervals(cis, scores)),
             interval_title("Aggregate test return per run and agent", scores, contexts),
         )
     ]

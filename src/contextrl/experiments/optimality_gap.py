@@ -11,10 +11,15 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import (
+    ONE_SEED,
     GapStatistics,
     design_words,
+    drawn_intervals,
     gap_statistics,
+    has_interval,
     interval_title,
+    interval_words,
+    stated,
 )
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, draw_set, grid
 from contextrl.experiments.protocol import Protocol, register_protocol
@@ -89,23 +94,28 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame, curves) 
         feature = varying[0] if varying else None
         for row in stats.aggregates:
             row["fraction at best return"] = finished[row["agent"]]
-        over = design_words({"general": g, "specialists": s}, spec.test_contexts)
+        both = {"general": g, "specialists": s}
+        intervals = (
+            f"95% bootstrap CIs over {design_words(both, spec.test_contexts)} "
+            f"({spec.bootstrap_reps} replicates, seed {spec.seed})"
+            if has_interval(both)
+            else f"Points only: {ONE_SEED}"
+        )
         text = [
             f"Variant {variant}: one general agent trained on {spec.num_contexts} contexts vs one "
             f"specialist per context; each evaluated on the context(s) it was trained on "
-            f"({spec.eval_episodes} episodes, {spec.seeds} seeds). 95% bootstrap CIs over {over} "
-            f"({spec.bootstrap_reps} replicates, seed {spec.seed}).",
-            f"Optimality gap E_c[G_specialist(c) − G_general(c)] = {stats.gap}.",
+            f"({spec.eval_episodes} episodes, {spec.seeds} seeds). {intervals}.",
+            f"Optimality gap E_c[G_specialist(c) − G_general(c)] = {stated(stats.gap, both)}.",
             "Specialists minus the general agent: "
-            + ", ".join(f"{name} {d}" for name, d in stats.differences.items())
+            + ", ".join(f"{name} {stated(d, both)}" for name, d in stats.differences.items())
             + ".",
             "Probability that a specialist beats the general agent on a context: "
-            f"{stats.improvement}.",
+            f"{stated(stats.improvement, both)}.",
             _per_seed_text(stats),
             f"Fraction of run×context returns at the best return observed in the run ({best:g}; "
             f"within 1% of the observed return range, i.e. ≥ {finished['threshold']:g}): "
             f"general {finished['general']:.2f}, specialists {finished['specialists']:.2f} "
-            f"(difference {finished['difference']}).",
+            f"(difference {stated(finished['difference'], both)}).",
         ]
         if g.missing or s.missing:
             text.append(
@@ -121,10 +131,10 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame, curves) 
             figure(
                 f"optgap-intervals-{variant}",
                 plots.intervals(
-                    stats.intervals,
-                    title=interval_title("Aggregate return", {"g": g, "s": s}, spec.test_contexts),
+                    drawn_intervals(stats.intervals, both),
+                    title=interval_title("Aggregate return", both, spec.test_contexts),
                 ),
-                f"Mean, median and IQM with 95% bootstrap CIs over {over}",
+                f"Mean, median and IQM ({interval_words(both, spec.test_contexts)})",
             ),
         ]
         if feature is not None:

@@ -15,7 +15,7 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
-from contextrl.analysis.scores import score_intervals, score_matrices
+from contextrl.analysis.scores import ONE_SEED, score_intervals, score_matrices
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, grid
@@ -236,6 +236,7 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves) -> l
                         "cells (seeds × contexts)": row["cells (seeds × contexts)"],
                     }
                 )
+    over = "95% CI over seeds, each with all its contexts" if spec.seeds > 1 else ONE_SEED
     text = [
         f"Kirk et al.'s evaluation protocol over {name_x} × {name_y}: mode A trains on the whole box, "
         f"B on an L-shaped band ({spec.band:.0%} of each range) along its low edges, C on the two "
@@ -247,7 +248,7 @@ def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves) -> l
         Section(
             "Train/test modes",
             text,
-            [("Mean return per region (95% CI over seeds, each with all its contexts)", rows)],
+            [(f"Mean return per region ({over})", rows)],
             figures,
         )
     ]

@@ -10,7 +10,15 @@ import pandas as pd
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import two_sample_ci
 from contextrl.analysis.report import Section
-from contextrl.analysis.scores import design_words, interval_title, score_intervals, score_matrices
+from contextrl.analysis.scores import (
+    drawn_intervals,
+    has_interval,
+    interval_title,
+    interval_words,
+    score_intervals,
+    score_matrices,
+    stated,
+)
 from contextrl.experiments.plan import Plan, grid, train_and_test_sets
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
@@ -65,15 +73,21 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves) -> 
             reps=spec.bootstrap_reps,
             seed=spec.seed,
         )
-        text.append(f"P({name} > hidden) = {poi} (95% CI over {design_words(scores, contexts)})")
+        pair = {name: other, "hidden": hidden}
+        if has_interval(pair):
+            text.append(f"P({name} > hidden) = {poi} ({interval_words(pair, contexts)})")
+        else:
+            text.append(f"P({name} > hidden) = {stated(poi, pair)}")
     returns = {name: s.values for name, s in scores.items() if s.present}
     figures = [
         figure("test-ecdf", plots.ecdf(returns, title="Test returns"), "eCDF of test returns"),
         figure("test-histogram", plots.histograms(returns, title="Test returns"), "Test returns"),
         figure(
             "test-intervals",
-            plots.intervals(cis, title=interval_title("Test return", scores, contexts)),
-            f"Aggregate test return with 95% bootstrap CIs over {design_words(scores, contexts)}",
+            plots.intervals(
+                drawn_intervals(cis, scores), title=interval_title("Test return", scores, contexts)
+            ),
+            f"Aggregate test return ({interval_words(scores, contexts)})",
         ),
     ]
     return [Section("Context visibility", text, [("Test return", rows)], figures)]
