@@ -26,6 +26,7 @@ from contextrl.paper.checks import (
     GATE,
     HARMLESS,
     MIN_SEEDS,
+    Verdict,
     _all,
     _decide,
     _zone,
@@ -113,7 +114,7 @@ def test_figures_run_end_to_end_with_their_agents_at_the_tiny_budget(name, paper
     assert verdict.holds in (True, False, None) and verdict.evidence
     text = report.read_text()
     assert html.escape(FIGURES[name].header("Claim").split(":")[0][:40]) in text
-    assert f"the claim {verdict.word}" in text
+    assert html.escape(verdict.sentence()) in text
 
 
 def random_agent_specs(figure) -> dict[str, dict]:
@@ -414,3 +415,37 @@ def test_the_command_lists_figures_and_refuses_an_unknown_one(capsys, tmp_path):
     assert all(f"{name}  (" in listed for name in FIGURES)
     assert main(["paper", "run", "figure_9", "--runs", str(tmp_path)]) == 2
     assert "unknown figure 'figure_9'; choose one of ['tabular_cmdp'" in capsys.readouterr().err
+
+
+def test_paper_page_refuses_a_runs_folder_that_does_not_exist(capsys, tmp_path):
+    """Before: ``paper page --runs MISSING`` wrote a page with every figure "not run"."""
+    out = tmp_path / "paper.md"
+    missing = tmp_path / "MISSING_DIR"
+    for action in ("page", "list"):
+        assert main(["paper", action, "--runs", str(missing), "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err == (
+            f"contextrl paper: error: paper {action}: --runs {missing} is not a folder; give the "
+            "folder `contextrl paper run --runs` wrote (default ./results/paper)"
+        )
+    assert not out.exists()
+
+
+def test_a_withheld_verdict_reads_as_a_sentence(capsys, tmp_path, monkeypatch):
+    """Before: ``paper run ecdf_pendulum --scale tiny`` printed "the claim no verdict"; and the help
+    said the tiny scale decides nothing while an exactly solved claim is decided there."""
+    from contextrl.paper import command
+
+    withheld = Verdict(True, "drops ...", "2 seeds, fewer than 5")
+    monkeypatch.setattr(command, "run_figure", lambda *a, **k: (withheld, tmp_path / "paper.html"))
+    assert main(["paper", "run", "ecdf_pendulum", "--scale", "tiny", "--runs", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out.splitlines()[0]
+    assert printed == (
+        "ecdf_pendulum (tiny budget): no verdict on the claim (2 seeds, fewer than 5). drops ...."
+    )
+    assert Verdict(None, "e").sentence("**") == "the claim **undecided**"
+    with pytest.raises(SystemExit):
+        main(["paper", "--help"])
+    assert "a claim solved exactly is decided at every scale" in " ".join(
+        capsys.readouterr().out.split()
+    )

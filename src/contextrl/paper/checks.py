@@ -58,6 +58,13 @@ class Verdict:
             return "no verdict"
         return {True: "holds", False: "does not hold", None: "undecided"}[self.holds]
 
+    def sentence(self, emphasis: str = "") -> str:
+        """The verdict as words: "the claim holds", or "no verdict on the claim (why)";
+        ``emphasis`` wraps the verdict (``**`` on the page)."""
+        if self.withheld:
+            return f"{emphasis}no verdict{emphasis} on the claim ({self.withheld})"
+        return f"the claim {emphasis}{self.word}{emphasis}"
+
 
 @dataclasses.dataclass(frozen=True)
 class Learning:

@@ -22,6 +22,11 @@ def paper_command(args: argparse.Namespace) -> int:
         raise SpecError(f"paper {args.action}: takes no figure (got {args.figure!r}); run does")
     if args.runs is None:  # run writes under ./results/paper; list and page read the kept runs
         args.runs = PAPER_RUNS if args.action == "run" else kept_runs()
+    elif args.action != "run" and not Path(args.runs).is_dir():
+        raise SpecError(
+            f"paper {args.action}: --runs {args.runs} is not a folder; give the folder "
+            f"`contextrl paper run --runs` wrote (default ./{PAPER_RUNS})"
+        )
     if args.action == "list":
         for row in figure_rows(args.runs):
             print(f"{row.pop('figure')}  ({row.pop('paper')})\n  claim: {row.pop('claim')}")
@@ -49,11 +54,7 @@ def paper_command(args: argparse.Namespace) -> int:
         batch_size=args.batch_size,
         progress=not args.quiet,
     )
-    withheld = f" ({verdict.withheld})" if verdict.withheld else ""
-    print(
-        f"{args.figure} ({args.scale} budget): the claim {verdict.word}{withheld}. "
-        f"{verdict.evidence}."
-    )
+    print(f"{args.figure} ({args.scale} budget): {verdict.sentence()}. {verdict.evidence}.")
     print(f"report: {path}")
     return 0
 
@@ -73,7 +74,7 @@ def add_paper(subparsers) -> None:
         choices=SCALES,
         default="small",
         help="the paper's budget, the small one two CPU cores afford (default), or tiny (a smoke "
-        "run that decides nothing)",
+        "run: no verdict from its intervals; a claim solved exactly is decided at every scale)",
     )
     parser.add_argument(
         "--runs",

@@ -124,14 +124,13 @@ def results_page(root: str | Path) -> str:
                 )
             elif scale == "paper":
                 lines.append(
-                    f"- **At {full}** ({where}): the claim **{verdict.word}**{withheld}. "
-                    f"{verdict.evidence}."
+                    f"- **At {full}** ({where}): {verdict.sentence('**')}. {verdict.evidence}."
                 )
             elif figure.decided_small and scale == "small":
                 lines.append(
                     f"- **At the small budget, which decides here** ({where}; a deviation: the "
-                    f"{full} does not fit two CPU cores, see below): the claim "
-                    f"**{verdict.word}**{withheld}. {verdict.evidence}.{_seeds_to_add(figure, runs)}"
+                    f"{full} does not fit two CPU cores, see below): {verdict.sentence('**')}. "
+                    f"{verdict.evidence}.{_seeds_to_add(figure, runs)}"
                 )
             else:
                 lines.append(

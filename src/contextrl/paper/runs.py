@@ -175,9 +175,7 @@ def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], 
     text = [
         f"The paper ({figure.header('Paper')}): {figure.header('Claim')}",
         f"Decision rule: {figure.rule}",
-        f"Here, at the {scale} budget: the claim {verdict.word}"
-        + (f" ({verdict.withheld})" if verdict.withheld else "")
-        + f". {verdict.evidence}.",
+        f"Here, at the {scale} budget: {verdict.sentence()}. {verdict.evidence}.",
     ]
     rows = [
         {
