@@ -131,6 +131,19 @@ def test_report_refuses_runs_of_different_features(tmp_path, capsys):
     one_line_error(status, err, "differ in features", "a: length", "b: gravity")
 
 
+def test_report_of_one_run_goes_where_out_says(tmp_path, capsys):
+    """Before: ``report RUN --out x.html`` was refused ("--out is for several runs")."""
+    run = constructed_run(tmp_path, "a", "CartPole", CARTPOLE)
+    out = tmp_path / "shared" / "x.html"
+    status, printed, err = cli(capsys, "report", run.path, "--out", out)
+    assert status == 0, err
+    assert f"report: {out}" in printed
+    assert out.read_text() == (run.path / "report.html").read_text()
+    assert "Context visibility" in out.read_text()
+    status, _, err = cli(capsys, "report", run.path, "--out", tmp_path / "x.pdf")
+    one_line_error(status, err, f"--out {tmp_path / 'x.pdf'}", "name it *.html")
+
+
 # ---- hpo's budget is rounds × steps_per_round --------------------------------------------------
 def test_hpo_refuses_timesteps_it_would_ignore(capsys, tmp_path):
     """Before: --timesteps was ignored (each member trained rounds × steps_per_round) and then written

@@ -24,7 +24,7 @@ from contextrl.experiments.protocol import PROTOCOLS, protocol_of
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.reports import learning_verdict
 from contextrl.experiments.runner import carry_on, open_run, prepare, report
-from contextrl.experiments.runs import RunDir
+from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import (
     SpecError,
     agent_options_error,
@@ -446,19 +446,17 @@ def add_run(subparsers) -> None:
 
 def report_command(args: argparse.Namespace) -> int:
     verdict: list[str] = []  # one run's learned-or-warn lines, as contextrl run ends with
+    out = None if args.out is None else Path(args.out)
+    if out is not None and out.suffix.lower() not in (".html", ".htm"):
+        raise SpecError(f"--out {out}: the report is one HTML file; name it *.html")
     try:
         if len(args.run_dir) > 1:
-            out = Path(args.out or "comparison.html")
-            if out.suffix.lower() not in (".html", ".htm"):
-                raise SpecError(f"--out {out}: the comparison is an HTML report; name it *.html")
-            path = compare_runs(args.run_dir, out, force=args.force)
+            path = compare_runs(args.run_dir, out or Path("comparison.html"), force=args.force)
         else:
-            if args.out:
-                raise SpecError(
-                    "report: --out is for several runs; one run's report is RUN/report.html"
-                )
             path = report(args.run_dir[0])
             verdict = learning_verdict(RunDir(args.run_dir[0]))
+            if out is not None:  # self-contained (figures inline): a copy reads the same anywhere
+                path = write_text(out, Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError as error:
         raise SpecError(str(error)) from None
     print(f"report: {path}")
@@ -473,7 +471,11 @@ def add_report(subparsers) -> None:
         help="rebuild the HTML report of a run, or overlay several runs of one protocol",
     )
     parser.add_argument("run_dir", nargs="+", help="run directories written by contextrl run")
-    parser.add_argument("--out", help="with several runs: the comparison HTML (comparison.html)")
+    parser.add_argument(
+        "--out",
+        help="the report's file (*.html): one run's is also kept as RUN/report.html; several "
+        "runs' comparison goes to comparison.html by default",
+    )
     parser.add_argument(
         "--force",
         action="store_true",
