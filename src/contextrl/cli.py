@@ -206,11 +206,8 @@ def add_list(subparsers) -> None:
 
 def run_describe(args: argparse.Namespace) -> int:
     env_spec = crl.spec(args.env)
+    env_spec.check_backend(args.backend, "--backend")
     options = {} if args.backend is None else {"backend": args.backend}
-    if options and env_spec.family not in ("brax", "dmc"):
-        raise ValueError(
-            f"--backend: only the Brax and dm_control environments have one; {env_spec.id} has none"
-        )
     env = env_spec.factory(**options)
     kind = "host" if env_spec.runs_on_host(options) else "jax"
     print(f"{env_spec.id} ({env_spec.family}, {kind})")

@@ -82,6 +82,28 @@ def refused(capsys, fragments, *argv) -> str:
         (["run", "visibility", "--set", "name=a/b", *DRY], ["names the run's folder"]),
         (["run", "visibility", "--set", "env=3", *DRY], ["env: expected a name (a string)"]),
         (["run", "visibility", "--variants", "", *DRY], ["variants: unknown variant ''"]),
+        (  # before: "backend: CartPole: unknown argument 'backend'"
+            ["run", "quickstart", "--set", "backend=mjx", *DRY],
+            ["backend mjx: only the Brax and dm_control environments have a backend; CartPole"],
+        ),
+        (  # before: planned 10,000,000,000,000 training steps without a word
+            ["run", "quickstart", "--timesteps", "1e12", *DRY],
+            ["total_timesteps must be at most 2,147,483,647", "got 1,000,000,000,000"],
+        ),
+        (  # before: it named the warm-up but not the budget that works
+            [
+                "run",
+                "visibility",
+                "--env",
+                "Pendulum",
+                "--agent",
+                "sac",
+                "--timesteps",
+                "1000",
+                *DRY,
+            ],
+            ["leaves no full logging period", "the smallest budget that trains is 6000"],
+        ),
     ],
 )
 def test_each_edge_is_refused_in_one_line_naming_it(argv, fragments, capsys, tmp_path, monkeypatch):
@@ -96,6 +118,29 @@ def test_an_agent_chosen_on_the_command_line_drops_options_written_for_another(c
     status, _, err = cli(capsys, "run", "quickstart", "--agent", "random", "--root", tmp_path, *DRY)
     assert status == 0, err
     assert "agent_options were written for ppo, so --agent random trains without them" in err
+
+
+def test_quickstart_on_another_environment_leaves_cartpoles_contexts_out(capsys, tmp_path):
+    """Before: ``run quickstart --env Pendulum`` failed on "unknown context feature 'length'"."""
+    status, out, err = cli(
+        capsys, "run", "quickstart", "--env", "Pendulum", "--root", tmp_path, *DRY
+    )
+    assert status == 0, err
+    assert err.strip() == (
+        "note: quickstart's contexts vary CartPole's length, so on Pendulum they are left out: "
+        "--vary and --test set them, else Pendulum's defaults for the visibility protocol apply"
+    )
+    assert "Pendulum, agent ppo" in out
+    status, _, err = cli(
+        capsys, "run", "quickstart", "--env", "CARLCartPole", "--root", tmp_path, *DRY
+    )
+    assert status == 0 and err == ""  # an alias of CartPole keeps the preset's contexts
+
+
+def test_sac_at_the_smallest_budget_it_names_is_accepted(capsys, tmp_path):
+    argv = ["run", "visibility", "--env", "Pendulum", "--agent", "sac", "--root", tmp_path]
+    status, _, err = cli(capsys, *argv, "--timesteps", "6000", *DRY)
+    assert status == 0, err
 
 
 def test_docs_write_only_where_told(capsys, tmp_path, monkeypatch):

@@ -27,7 +27,7 @@ from contextrl.agents.validation import ConfigError, check_fraction, check_posit
 from contextrl.context.features import ContextBase, ContextSpace
 from contextrl.context.selectors import FromSet, make_selector
 from contextrl.core.contextual import ContextualEnv, make_provider
-from contextrl.core.env import Env
+from contextrl.core.env import MAX_STEP_COUNT, Env
 from contextrl.core.host import HostEnv
 
 
@@ -64,6 +64,11 @@ class AgentConfig:
         """Raise ConfigError for any value that cannot train."""
         for name in ("total_timesteps", "num_envs", "episode_log_size"):
             check_positive(name, getattr(self, name), integer=True)
+        if self.total_timesteps > MAX_STEP_COUNT:
+            raise ConfigError(
+                f"total_timesteps must be at most {MAX_STEP_COUNT:,} (the training step counter "
+                f"is int32), got {self.total_timesteps:,}"
+            )
         check_positive("progress_every", self.progress_every, integer=True, allow_zero=True)
         check_fraction("gamma", self.gamma)
         check_hidden_sizes(self.hidden_sizes, self.activation)

@@ -59,10 +59,12 @@ class OffPolicyConfig(AgentConfig):
         """Refuse a budget that leaves no full logging period after the warm-up (checked after the
         subclass's own fields, which the schedule reads)."""
         if self.num_rows < 1:
+            warmup = self.warmup_steps * self.num_envs
+            period = self.num_envs * self.steps_per_update * self.updates_per_row
             raise ConfigError(
                 f"total_timesteps ({self.total_timesteps}) leaves no full logging period after the "
-                f"warm-up ({self.warmup_steps * self.num_envs} transitions; log_every "
-                f"{self.log_every})"
+                f"warm-up ({warmup} transitions; log_every {self.log_every}); the smallest budget "
+                f"that trains is {warmup + period} (or lower learning_starts or log_every)"
             )
 
     @property

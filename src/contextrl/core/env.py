@@ -95,8 +95,8 @@ class ContextHelpers:
         return self.context_space.make(**values)
 
 
-# The largest time limit the compiled step counter (int32) holds.
-MAX_STEPS_LIMIT = 2**31 - 1
+# The largest count of steps an int32 counter holds: an episode's time limit, a training budget.
+MAX_STEP_COUNT = 2**31 - 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,9 +121,9 @@ class Env(ContextHelpers):
             object.__setattr__(self, "max_steps", self.default_max_steps)
         if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
             raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
-        if not 1 <= self.max_steps <= MAX_STEPS_LIMIT:
+        if not 1 <= self.max_steps <= MAX_STEP_COUNT:
             raise ValueError(
-                f"max_steps must be a positive integer of at most {MAX_STEPS_LIMIT:,} (the step "
+                f"max_steps must be a positive integer of at most {MAX_STEP_COUNT:,} (the step "
                 f"counter is int32), got {self.max_steps!r}"
             )
         for name in self.obs_context.features:

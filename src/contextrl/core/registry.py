@@ -8,6 +8,9 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+# The families whose environments take a ``backend`` argument (their simulator's pipeline).
+BACKEND_FAMILIES = {"brax": "Brax", "dmc": "dm_control"}
+
 
 @dataclasses.dataclass(frozen=True)
 class EnvSpec:
@@ -20,6 +23,15 @@ class EnvSpec:
     host: bool = False  # True for environments stepped on the CPU outside JAX (Box2D, MuJoCo, …)
     # Values of a host environment's ``backend`` argument that build a JAX environment instead (MJX).
     jax_backends: tuple[str, ...] = ()
+
+    def check_backend(self, backend: Any, option: str) -> None:
+        """Refuse ``backend`` (given as ``option``) for an environment of a family without one."""
+        if backend is not None and self.family not in BACKEND_FAMILIES:
+            families = " and ".join(BACKEND_FAMILIES.values())
+            raise ValueError(
+                f"{option} {backend}: only the {families} environments have a backend; "
+                f"{self.id} ({self.family}) has none"
+            )
 
     def runs_on_host(self, kwargs: Mapping[str, Any] | None = None) -> bool:
         """Whether the environment built with ``kwargs`` is a host environment."""

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import contextrl as crl
 from contextrl.agents import get_agent, registered_agents
 from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.executors import connect
@@ -125,6 +126,7 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
     }
     written_for = data.get("agent", "ppo")  # the agent the preset's or config's options are for
     data.update({k: v for k, v in simple.items() if v is not None})
+    _leave_preset_contexts(protocol, data, loaded, notices)
     if args.variants is not None:
         data["variants"] = args.variants.split(",")
     options = data.get("agent_options") or {}
@@ -165,6 +167,34 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
         data["test"] = parse_assignments(args.test, "--test", "FEATURE=DIST", parse_distribution)
     data.update(parse_assignments(args.set, "--set"))
     return data
+
+
+def _leave_preset_contexts(
+    protocol: str, data: dict[str, Any], loaded: dict[str, Any], notices: list[str] | None
+) -> None:
+    """A preset's contexts vary its own environment's features: on another ``--env`` they are
+    dropped, so that environment's protocol defaults apply (or ``--vary`` is asked for), said once."""
+    preset = PRESETS.get(protocol)
+    if preset is None or _env_id(data["env"]) == preset["env"]:
+        return
+    dropped = [name for name in ("train", "test") if name not in loaded and name in data]
+    for name in dropped:
+        del data[name]
+    if dropped and notices is not None:
+        notices.append(
+            f"note: {protocol}'s contexts vary {preset['env']}'s {', '.join(preset['train'])}, so "
+            f"on {data['env']} they are left out: --vary and --test set them, else "
+            f"{data['env']}'s defaults for the {data['protocol']} protocol apply"
+        )
+
+
+def _env_id(name: Any) -> Any:
+    """The registry id of an environment name or alias (the name itself when unknown: the spec's
+    validation names it)."""
+    try:
+        return crl.spec(name).id
+    except (KeyError, TypeError):
+        return name
 
 
 # Options that shape a spec: refused with --resume, which continues the run its spec.yaml describes.

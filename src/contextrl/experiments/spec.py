@@ -340,8 +340,13 @@ class CommonSpec:
     def make_env(self):
         """The environment (hidden observation; agents add their own context input). A host
         environment is built once per process and shared: specs only read its spaces."""
+        host = self.host  # an unknown environment is refused here, named
         try:
-            if self.host:
+            crl.spec(self.env).check_backend(self.backend, "backend")
+        except ValueError as error:
+            raise SpecError(str(error)) from None
+        try:
+            if host:
                 key = (self.env, self.backend)
                 if key not in _HOST_ENVS:
                     _HOST_ENVS[key] = crl.make(self.env, **self.env_options)
