@@ -144,6 +144,22 @@ def test_report_of_one_run_goes_where_out_says(tmp_path, capsys):
     one_line_error(status, err, f"--out {tmp_path / 'x.pdf'}", "name it *.html")
 
 
+def test_resume_counts_the_runs_chunks_and_previews_what_is_left(tmp_path, capfd):
+    """Before: ``--resume DIR --max-chunks 1`` printed ``[1/1 chunks]`` for the second of two
+    chunks, and ``--resume DIR --dry-run`` was refused."""
+    out = tmp_path / "run"
+    quick = ["--agent", "random", "--seeds", "1", "--episodes", "1", "--max-steps", "20"]
+    assert main(["run", "quickstart", *quick, "--max-chunks", "1", "--out", str(out)]) == 0
+    assert "[1/2 chunks] chunk 0" in capfd.readouterr().err
+    assert main(["run", "--resume", str(out), "--dry-run"]) == 0
+    preview = capfd.readouterr().out
+    assert preview.startswith("dry run of resuming visibility (quickstart); nothing is written")
+    assert "  finished: 1 of 2 chunks; left: 1 chunk(s), 0 training steps" in preview
+    assert "chunk-0001" not in " ".join(p.name for p in (out / "results").iterdir())
+    assert main(["run", "--resume", str(out), "--max-chunks", "1"]) == 0
+    assert "[2/2 chunks] chunk 1" in capfd.readouterr().err
+
+
 # ---- hpo's budget is rounds × steps_per_round --------------------------------------------------
 def test_hpo_refuses_timesteps_it_would_ignore(capsys, tmp_path):
     """Before: --timesteps was ignored (each member trained rounds × steps_per_round) and then written

@@ -200,7 +200,7 @@ def _env_id(name: Any) -> Any:
 # Options that shape a spec: refused with --resume, which continues the run its spec.yaml describes.
 SPEC_OPTIONS = (
     "protocol", "config", "env", "agent", "variants", "seeds", "seed", "timesteps", "episodes",
-    "max_steps", "vary", "test", "agent_option", "agent_config", "set", "name", "out", "dry_run",
+    "max_steps", "vary", "test", "agent_option", "agent_config", "set", "name", "out",
 )  # fmt: skip
 
 
@@ -212,8 +212,8 @@ def _refuse_spec_options(args: argparse.Namespace) -> None:
         )
         raise SpecError(
             f"--resume {args.resume} continues the run as its spec.yaml says; {flags} cannot "
-            "apply (only --executor, --address, --max-chunks, --quiet, --verbose, --log do). Start a "
-            "new run to change the spec"
+            "apply (only --executor, --address, --max-chunks, --quiet, --verbose, --log and "
+            "--dry-run do). Start a new run to change the spec"
         )
 
 
@@ -321,7 +321,11 @@ def run_command(args: argparse.Namespace) -> int:
     progress = not args.quiet
     interrupt = _Interrupt()
     try:
-        if args.resume:
+        if args.resume and args.dry_run:  # what is left, read without writing anything
+            _refuse_spec_options(args)
+            run = RunDir(args.resume)
+            spec = prepare(run.spec())
+        elif args.resume:
             _refuse_spec_options(args)
             run, spec = open_run(resume=args.resume)
         else:
@@ -337,8 +341,13 @@ def run_command(args: argparse.Namespace) -> int:
             verbose=args.verbose,
         )
         if args.dry_run:  # checked as the run is up to here; then nothing is created
-            where = _check_new_run(spec, args)
-            print(describe_plan(spec, where, estimate=args.estimate, root=args.root))
+            where = run.path if args.resume else _check_new_run(spec, args)
+            finished = run.finished() if args.resume else None
+            print(
+                describe_plan(
+                    spec, where, estimate=args.estimate, root=args.root, finished=finished
+                )
+            )
             return 0
         if not args.resume:
             run = _create_run(spec, args)

@@ -43,10 +43,12 @@ BAR_REFRESH_SECONDS = 0.5  # how often worker executors redraw the bars of the c
 
 
 class Progress:
-    """One line per finished chunk: trials done, failures, elapsed time and an ETA."""
+    """One line per finished chunk: the run's chunks finished of all it has (``before``: finished by
+    earlier calls), failures, elapsed time and an ETA for this call's chunks (``todo``)."""
 
-    def __init__(self, plan: Plan, todo: list[int], stream=sys.stderr, enabled: bool = True):
-        self.plan, self.total, self.stream, self.enabled = plan, len(todo), stream, enabled
+    def __init__(self, plan: Plan, todo: list[int], before: int, enabled: bool = True):
+        self.plan, self.todo, self.before = plan, len(todo), before
+        self.stream, self.enabled = sys.stderr, enabled  # the stream of the time of the run
         self.done, self.failed, self.start = 0, 0, time.perf_counter()
 
     def __call__(self, chunk: int, ok: bool) -> None:
@@ -55,11 +57,12 @@ class Progress:
         if not self.enabled:
             return
         elapsed = time.perf_counter() - self.start
-        eta = elapsed / self.done * (self.total - self.done)
+        eta = elapsed / self.done * (self.todo - self.done)
         trials = len(self.plan.chunks[chunk])
         status = "ok" if ok else "FAILED"
+        finished = self.before + self.done
         tqdm.write(  # above any chunk bars on the terminal
-            f"[{self.done}/{self.total} chunks] chunk {chunk} ({trials} trials) {status}; "
+            f"[{finished}/{len(self.plan.chunks)} chunks] chunk {chunk} ({trials} trials) {status}; "
             f"{self.failed} failed; elapsed {elapsed:.0f}s, eta {eta:.0f}s",
             file=self.stream,
         )
@@ -265,7 +268,7 @@ def _drive(
     start = time.perf_counter()
     earlier = run.manifest().get("wall_seconds", 0.0)  # spent by earlier invocations
     todo, skipped = _pending(run, plan, max_chunks)
-    report = Progress(plan, todo, enabled=progress)
+    report = Progress(plan, todo, len(skipped), enabled=progress)
     ran, failed = [], []
     for chunk, fetch in finished(todo):
         ok = _settle(run, plan, chunk, fetch, save_params)

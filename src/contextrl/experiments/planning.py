@@ -167,12 +167,15 @@ def describe_plan(
     *,
     estimate: bool = False,
     root: str | os.PathLike = "runs",
+    finished: set[int] | None = None,
 ) -> str:
     """The dry-run text: trials, chunks, environment steps, the run folder ``where`` and, with
     ``estimate``, a time estimate from earlier runs of this spec under ``root`` or from a short
-    timed call (the only part that compiles anything)."""
+    timed call (the only part that compiles anything). ``finished``: the chunks a run being
+    resumed has finished; the text then says what is left."""
     plan = expand(spec)
-    lines = [f"dry run of {spec.protocol} ({spec.name}); nothing is written"]
+    resuming = "resuming " if finished is not None else ""
+    lines = [f"dry run of {resuming}{spec.protocol} ({spec.name}); nothing is written"]
     lines.append(f"  results: {where} (report.html there when the run ends)")
     if not plan.trials:
         lines.append(
@@ -201,10 +204,21 @@ def describe_plan(
     lines.append(
         f"  environment steps: {train_steps:,} training, at most {eval_steps:,} evaluation"
     )
+    left = [c for c in range(len(plan.chunks)) if c not in (finished or set())]
+    if finished is not None:
+        steps_left = spec.training_steps([plan.trials[i] for c in left for i in plan.chunks[c]])
+        lines.append(
+            f"  finished: {len(plan.chunks) - len(left)} of {len(plan.chunks)} chunks; left: "
+            f"{len(left)} chunk(s), {steps_left:,} training steps"
+        )
+    if not left:
+        lines.append("  time: nothing left to run")
+        return "\n".join(lines)
     if not estimate:
         lines.append("  time: not estimated (--estimate times it)")
         return "\n".join(lines)
     seconds, how = _estimate(spec, plan, root)
+    seconds *= len(left) / len(plan.chunks)  # the chunks still to run
     lines.append(how)
     lines.append(
         f"  estimated time: {duration(seconds)} with the local executor on this machine "
