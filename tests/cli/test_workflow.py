@@ -162,8 +162,9 @@ def test_yaml_numbers_vary_merge_and_dry_run(tmp_path):
     assert "train keeps ['gravity'] from the config and replaces ['length']" in result.stderr
     out = result.stdout
     assert "trials: 3 (visibility)" in out and "chunks: 2 (up to 2 trials" in out
-    # 3 trials x 100,000 steps; evaluation at most 3 x (4 test + 2 x 16 own) contexts x 2 x 50 steps
-    assert "environment steps: 300,000 training, at most 10,800 evaluation" in out
+    # 3 trials x 99,840 steps (195 whole rollouts of 4 copies x 128 steps); evaluation at most
+    # 3 x (4 test + 2 x 16 own) contexts x 2 x 50 steps
+    assert "environment steps: 299,520 training, at most 10,800 evaluation" in out
     assert "results: runs/" in out and "time: not estimated (--estimate times it)" in out
     assert set(tmp_path.iterdir()) == {config}
 

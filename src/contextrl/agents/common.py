@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -59,6 +59,14 @@ class AgentConfig:
     def __post_init__(self):
         if isinstance(self.hidden_sizes, (list, tuple)):  # anything else is refused by validate
             object.__setattr__(self, "hidden_sizes", tuple(self.hidden_sizes))
+
+    # What ``total_timesteps`` is rounded down to, said where the rounding drops steps.
+    training_unit: ClassVar[str] = "whole metrics rows"
+
+    @property
+    def trained_timesteps(self) -> int:
+        """Environment steps training takes: ``total_timesteps`` rounded down to whole units."""
+        return self.total_timesteps
 
     def validate(self) -> None:
         """Raise ConfigError for any value that cannot train."""

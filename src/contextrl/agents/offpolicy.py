@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -82,9 +82,15 @@ class OffPolicyConfig(AgentConfig):
         per_row = self.num_envs * self.steps_per_update * self.updates_per_row
         return max(remaining, 0) // per_row
 
+    training_unit: ClassVar[str] = "the warm-up, then whole logging periods"
+
     @property
     def num_updates(self) -> int:
         return self.num_rows * self.updates_per_row
+
+    @property
+    def trained_timesteps(self) -> int:
+        return (self.warmup_steps + self.num_updates * self.steps_per_update) * self.num_envs
 
     @property
     def replay_capacity(self) -> int:
@@ -143,8 +149,7 @@ def make_train(
     num_contexts = num_context_ids(env, train_contexts)
     space = env.context_space
     num_envs = config.num_envs
-    total = (config.warmup_steps + config.num_updates * config.steps_per_update) * num_envs
-    progress = Progress(algorithm.name, total, config.progress_every)
+    progress = Progress(algorithm.name, config.trained_timesteps, config.progress_every)
 
     def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
         cenv = build_env(contexts)

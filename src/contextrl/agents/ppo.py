@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -102,9 +102,15 @@ class PPOConfig(AgentConfig):
                 f"(num_envs × num_steps = {batch})"
             )
 
+    training_unit: ClassVar[str] = "whole rollouts of num_envs × num_steps"
+
     @property
     def num_updates(self) -> int:
         return self.total_timesteps // (self.num_envs * self.num_steps)
+
+    @property
+    def trained_timesteps(self) -> int:
+        return self.num_updates * self.num_envs * self.num_steps
 
 
 @dataclasses.dataclass(frozen=True)

@@ -331,7 +331,8 @@ def run_command(args: argparse.Namespace) -> int:
         else:
             notices: list[str] = []
             spec = prepare(spec_from_args(args, notices))
-            for notice in notices:
+            notices.append(spec.budget_note() if spec.trains_agents else None)
+            for notice in filter(None, notices):
                 print(notice, file=sys.stderr)
         ray_started = connect(
             args.executor,

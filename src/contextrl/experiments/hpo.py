@@ -92,6 +92,11 @@ class HPOSpec(CommonSpec):
     def training_steps(self, trials) -> int:
         return len(trials) * self.population * self.rounds * self.steps_per_round
 
+    def budget_note(self) -> None:
+        """None: a member's budget is rounds × steps_per_round, not the agent's total_timesteps
+        (which the shared note reads)."""
+        return None
+
     def validate(self) -> None:
         super().validate()
         for field in ("num_train_contexts", "num_test_contexts", "population", "rounds"):

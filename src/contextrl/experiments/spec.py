@@ -319,10 +319,23 @@ class CommonSpec:
     def training_steps(self, trials) -> int:
         """Environment steps the agents of ``trials`` (a plan's) train for, summed."""
         budgets = {
-            variant: int(getattr(self.agent_config(variant), "total_timesteps", 0) or 0)
+            variant: int(getattr(self.agent_config(variant), "trained_timesteps", 0) or 0)
             for variant in {t.variant for t in trials}
         }
         return sum(budgets[t.variant] for t in trials)
+
+    def budget_note(self) -> str | None:
+        """A note where the agents train fewer steps than ``total_timesteps`` asks (whole rollouts,
+        whole logging periods), so the difference is said, not found later."""
+        config = self.agent_config(self.variants[0])
+        asked = getattr(config, "total_timesteps", None)
+        trained = getattr(config, "trained_timesteps", asked)
+        if asked is None or trained == asked:
+            return None
+        return (
+            f"note: {self.agent} trains {trained:,} of the {asked:,} total_timesteps per agent "
+            f"({config.training_unit})"
+        )
 
     @property
     def env_options(self) -> dict[str, Any]:
