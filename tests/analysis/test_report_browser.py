@@ -117,3 +117,18 @@ def test_a_run_report_renders(browser, tmp_path):
     assert shown["tabular-gaps"][0] > 100
     headings = [h.text for h in browser.find_elements("tag name", "h2")]
     assert headings == ["Summary", "Tabular cMDPs", "Spec", "Run metadata"]
+
+
+def test_a_wide_table_or_long_line_never_scrolls_the_page_sideways(browser, tmp_path):
+    """A table of many columns (a run varying many features) and a long line of metadata stay inside
+    the page at 1,280 px: the table scrolls in its own box, the line wraps."""
+    wide = [{f"feature_{i}": 123456.789 for i in range(40)}]
+    code = "x" * 400 + " " + "/a/long/path/" * 40
+    path = tmp_path / "report.html"
+    path.write_text(render("wide", [Section("S", ["text"], [("wide", wide)], code=code)], {}))
+    browser.set_window_size(1280, 900)
+    browser.get(f"file://{path}")
+    page, viewport = browser.execute_script(
+        "return [document.documentElement.scrollWidth, document.documentElement.clientWidth];"
+    )
+    assert page <= viewport

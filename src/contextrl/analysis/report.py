@@ -16,13 +16,15 @@ from typing import Any
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
 h1 { border-bottom: 2px solid #446; } h2 { margin-top: 2em; color: #335; }
-table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
+table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; display: block;
+        max-width: 100%; overflow-x: auto; }
 th, td { border: 1px solid #ccc; padding: 0.3em 0.6em; text-align: right; }
 th { background: #eef; } td:first-child, th:first-child { text-align: left; }
 figure { display: inline-block; margin: 0.5em; vertical-align: top; }
 figcaption { font-size: 0.85em; color: #555; max-width: 560px; }
 img.figure { max-width: 100%; border: 1px solid #ddd; }
-pre { background: #f6f6f8; padding: 1em; overflow-x: auto; font-size: 0.85em; }
+pre { background: #f6f6f8; padding: 1em; white-space: pre-wrap; overflow-wrap: anywhere;
+      font-size: 0.85em; }
 .failed { color: #a00; }
 .warning { border: 2px solid #a00; background: #fee; color: #700; padding: 0.6em 1em; }
 """

@@ -56,6 +56,9 @@ class Protocol:
     execute: Callable[..., Any] | None = None
     runs_on_ray: bool = False  # it starts Ray itself (--address applies)
     per_context_figures: bool = True  # report: return against each varied feature
+    # report: the per-context section's interval table (False where the protocol's own section
+    # shows the same agents' intervals, so the table is not shown twice)
+    per_context_intervals: bool = True
     draws_heatmap: bool = False  # its own sections draw the two-feature heat map
     training_section: bool = True  # report: the training curves (PB2 draws its schedules instead)
     runs_text: Callable[[Any], str] = seeds_text

@@ -276,11 +276,12 @@ def per_context_section(
     text: Sequence[str] = (),
     tables: Sequence[tuple[str, list[dict]]] = (),
     contexts: str | None = None,
+    intervals: bool = True,
 ) -> Section:
     """Test return against each varied feature (CI band over seeds, training range shaded), a heat
     map when two features vary, and the per-context table (all of it in ``csv``), from the score
     cells of :func:`score_cells`; ``tables`` come last. ``contexts``: the intervals' design of the
-    test contexts (default: the protocol's)."""
+    test contexts (default: the protocol's); ``intervals``: the agents' interval table first."""
     contexts = spec.test_contexts if contexts is None else contexts
     features = varying_features(cells)
     figures = []
@@ -343,10 +344,17 @@ def per_context_section(
             f"{label}: each seed's return on a context is the mean over its "
             f"{int(group['trials'].max())} agents (trained on different contexts)."
         )
+    per_context = [(caption, shown), *tables]
+    if not intervals:
+        return Section(title, text, per_context, figures)
     scores = score_matrices(cells)
     _, rows = score_intervals(scores, **{**spec.design, "contexts": contexts})
-    intervals = (interval_title("Test return", scores, contexts), rows)
-    return Section(title, text, [intervals, (caption, shown), *tables], figures)
+    return Section(
+        title,
+        text,
+        [(interval_title("Test return", scores, contexts), rows), *per_context],
+        figures,
+    )
 
 
 def evaluation_sections(run: RunDir, spec: CommonSpec, results: pd.DataFrame) -> list[Section]:
@@ -511,7 +519,11 @@ def build_report(run: RunDir) -> str:
         table = per_context_table(cells)
         write_text(run.path / "results" / "per_context.csv", table.to_csv(index=False))
         if protocol.per_context_figures:
-            sections.append(per_context_section(spec, plan, cells, table))
+            sections.append(
+                per_context_section(
+                    spec, plan, cells, table, intervals=protocol.per_context_intervals
+                )
+            )
         missing = missing_rows(score_matrices(cells))
         if missing:
             sections.append(

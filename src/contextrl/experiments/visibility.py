@@ -93,4 +93,6 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves) -> 
     return [Section("Context visibility", text, [("Test return", rows)], figures)]
 
 
-register_protocol(Protocol(VisibilitySpec, _sections, _expand))
+register_protocol(
+    Protocol(VisibilitySpec, _sections, _expand, per_context_intervals=False)  # its own table
+)
