@@ -323,3 +323,14 @@ def test_brax_loads_without_third_party_noise_or_a_mujoco_log(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stdout == "" and result.stderr == "", (result.stdout, result.stderr)
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("dm_control") is None, reason="the dmc extra")
+def test_dm_control_on_mjx_loads_without_mjxs_import_notices(tmp_path):
+    """Before: every MJX command printed "Failed to import warp" and "Failed to import
+    mujoco_warp" (MJX's first import, on stdout)."""
+    result = python(
+        "-c", "import contextrl as crl; crl.make('DmcWalker', backend='mjx')", cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == "" and result.stderr == "", (result.stdout, result.stderr)

@@ -14,15 +14,11 @@ rendering; MuJoCo reads it when it is first imported, which brax does) unless it
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import dataclasses
 import functools
-import io
-import logging
 import os
 import sys
-import warnings
 from typing import Any, ClassVar
 
 import jax
@@ -33,6 +29,7 @@ from contextrl.context.features import ContextBase, context_type, feature
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
 from contextrl.envs.mujoco_mass import mass_constants, pose_tables
+from contextrl.envs.quiet import quiet_mujoco
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -62,29 +59,6 @@ def compass_angle(choices: tuple[str, ...], index) -> jax.Array:
     return jnp.deg2rad(degrees[index])
 
 
-@contextlib.contextmanager
-def _quiet_brax():
-    """Brax's and MuJoCo's notices about themselves, not about the user's work, kept out of the
-    terminal and the current folder: MJX's "Failed to import warp" print (stdout), brax's
-    "not actively maintained" UserWarning, and MuJoCo's compiler deprecation warnings on brax's
-    stock models, which MuJoCo's default handler would print and append to ./MUJOCO_LOG.TXT.
-    What was held back goes to the ``contextrl`` logger at DEBUG level."""
-    import mujoco
-
-    log = logging.getLogger("contextrl")
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda message: log.debug("MuJoCo: %s", message))
-    printed = io.StringIO()
-    try:
-        with warnings.catch_warnings(), contextlib.redirect_stdout(printed):
-            warnings.filterwarnings("ignore", message="Brax System", category=UserWarning)
-            yield
-    finally:
-        mujoco.set_mju_user_warning(previous)
-        if printed.getvalue().strip():
-            log.debug("brax import: %s", printed.getvalue().strip())
-
-
 @functools.cache
 def load_brax_env(brax_name: str, backend: str, fluid: bool):
     """Brax's environment object with its stock system, loaded from its MJCF once per process.
@@ -92,7 +66,7 @@ def load_brax_env(brax_name: str, backend: str, fluid: bool):
     ``fluid`` switches on MJX's medium model (a static switch), so a viscosity from the context acts;
     at viscosity 0 the medium adds exactly zero force.
     """
-    with _quiet_brax():
+    with quiet_mujoco():
         from brax import envs as brax_envs
 
         env = brax_envs.get_environment(brax_name, backend=backend)

@@ -28,7 +28,8 @@ import numpy as np
 
 from contextrl.context.features import feature
 from contextrl.core.spaces import Box
-from contextrl.envs.brax.base import BraxEnv, _quiet_brax
+from contextrl.envs.brax.base import BraxEnv
+from contextrl.envs.quiet import quiet_mujoco
 
 # Toward 0 MJX's pyramidal friction cones turn singular: at its default context Fetch gave NaN at 0
 # and 0.005 and flew off at 0.0001 (100 random steps, 4 runs each); with the checker's random contexts
@@ -65,7 +66,7 @@ class Physics:
 @functools.cache
 def load_physics(model_xml: str, n_frames: int) -> Physics:
     """The system of one task's MJCF, loaded once per process."""
-    with _quiet_brax():
+    with quiet_mujoco():
         from brax.io import mjcf
 
         return Physics(mjcf.loads(model_xml), n_frames)

@@ -42,6 +42,7 @@ import numpy as np
 from contextrl.core.env import Env
 from contextrl.core.spaces import Box
 from contextrl.envs.mujoco_mass import mass_constants, pose_tables
+from contextrl.envs.quiet import quiet_mujoco
 
 SOLVER_TOLERANCE = 1e-6
 MAX_VALUE = 1e10  # MuJoCo's mjMAXVAL: a larger position, velocity or acceleration is a divergence
@@ -80,7 +81,9 @@ def reference(host_class: type, task: str):
 def load_stock(host_class: type, task: str, medium: bool, contacts: bool) -> Stock:
     """The task's stock model on MJX (see the module docstring for what is set at load)."""
     import mujoco
-    from mujoco import mjx
+
+    with quiet_mujoco():  # the first import of MJX prints about optional packages
+        from mujoco import mjx
 
     host = reference(host_class, task)
     mj_model = copy.deepcopy(host.physics.model.ptr)  # the reference's own model stays untouched
