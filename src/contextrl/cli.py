@@ -488,6 +488,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"contextrl {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (`contextrl list | head`): stop without a word
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush
+        return 141  # as a process ended by SIGPIPE, like other command-line tools
     except USER_ERRORS as error:
         if debug:
             raise

@@ -290,6 +290,18 @@ def test_a_png_is_one_frame_and_says_so(tmp_path, capsys):
         assert still.width > 2 * 600  # both panels, side by side
 
 
+def test_output_to_a_reader_that_went_away_ends_quietly(tmp_path):
+    """Before: ``contextrl describe CartPole | head -1`` ended with "error: Broken pipe"."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    command = [sys.executable, "-m", "contextrl", "describe", "CartPole"]
+    process = subprocess.Popen(
+        command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    process.stdout.close()  # the reader is gone before anything is written
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 141 and err == b"", err
+
+
 # ---- --version, python -m contextrl, one-seed intervals, third-party noise ---------------------
 def test_version_and_python_dash_m(tmp_path):
     import contextrl
