@@ -131,6 +131,14 @@ def test_report_refuses_runs_of_different_features(tmp_path, capsys):
     one_line_error(status, err, "differ in features", "a: length", "b: gravity")
 
 
+def test_report_refuses_a_run_given_twice(tmp_path, capsys):
+    """Before: "several agents share a (seed, test set, context) cell; label each kind and
+    variant apart"."""
+    run = constructed_run(tmp_path, "a", "CartPole", CARTPOLE)
+    status, _, err = cli(capsys, "report", run.path, f"{run.path}/", "--out", tmp_path / "x.html")
+    one_line_error(status, err, "given twice; give each run once")
+
+
 def test_report_of_one_run_goes_where_out_says(tmp_path, capsys):
     """Before: ``report RUN --out x.html`` was refused ("--out is for several runs")."""
     run = constructed_run(tmp_path, "a", "CartPole", CARTPOLE)

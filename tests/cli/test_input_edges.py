@@ -82,6 +82,14 @@ def refused(capsys, fragments, *argv) -> str:
         (["run", "visibility", "--set", "name=a/b", *DRY], ["names the run's folder"]),
         (["run", "visibility", "--set", "env=3", *DRY], ["env: expected a name (a string)"]),
         (["run", "visibility", "--variants", "", *DRY], ["variants: unknown variant ''"]),
+        (  # before: --set won over --seeds without a word
+            ["run", "visibility", "--set", "seeds=3", "--seeds", "4", *DRY],
+            ["--set seeds=3 and --seeds 4 both set seeds; give one"],
+        ),
+        (
+            ["run", "visibility", "--set", "eval_episodes=3", "--episodes", "4", *DRY],
+            ["--set eval_episodes=3 and --episodes 4 both set eval_episodes; give one"],
+        ),
         (  # before: "backend: CartPole: unknown argument 'backend'"
             ["run", "quickstart", "--set", "backend=mjx", *DRY],
             ["backend mjx: only the Brax and dm_control environments have a backend; CartPole"],
@@ -149,6 +157,8 @@ def test_a_budget_rounded_to_whole_rollouts_is_said_and_planned_as_trained(capsy
         "(whole rollouts of num_envs × num_steps)"
     )
     assert "environment steps: 296,960 training" in out  # 10 agents
+    status, _, err = cli(capsys, "run", "visibility", "--root", tmp_path, *DRY)
+    assert status == 0 and "note" not in err  # a budget the command line did not give: no note
 
 
 def test_sac_at_the_smallest_budget_it_names_is_accepted(capsys, tmp_path):

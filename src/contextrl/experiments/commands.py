@@ -165,8 +165,28 @@ def spec_from_args(args: argparse.Namespace, notices: list[str] | None = None) -
             notices.append(notice)
     if args.test:
         data["test"] = parse_assignments(args.test, "--test", "FEATURE=DIST", parse_distribution)
-    data.update(parse_assignments(args.set, "--set"))
+    sets = parse_assignments(args.set, "--set")
+    for field, flag in FLAGGED_FIELDS.items():
+        value = getattr(args, flag.removeprefix("--").replace("-", "_"))
+        if field in sets and value is not None:
+            raise SpecError(
+                f"--set {field}={sets[field]} and {flag} {value} both set {field}; give one"
+            )
+    data.update(sets)
     return data
+
+
+def _budget_typed(args: argparse.Namespace) -> bool:
+    """Whether the command line gives the training budget (--timesteps, --agent-option): where it
+    is rounded down to whole rollouts or logging periods, the run says so."""
+    return args.timesteps is not None or any("total_timesteps" in o for o in args.agent_option)
+
+
+# Spec fields that have a flag of their own: --set FIELD=... beside the flag is refused.
+FLAGGED_FIELDS = {
+    "env": "--env", "agent": "--agent", "seeds": "--seeds", "seed": "--seed", "name": "--name",
+    "eval_episodes": "--episodes", "max_steps": "--max-steps", "variants": "--variants",
+}  # fmt: skip
 
 
 def _leave_preset_contexts(
@@ -331,7 +351,8 @@ def run_command(args: argparse.Namespace) -> int:
         else:
             notices: list[str] = []
             spec = prepare(spec_from_args(args, notices))
-            notices.append(spec.budget_note() if spec.trains_agents else None)
+            if spec.trains_agents and _budget_typed(args):
+                notices.append(spec.budget_note())
             for notice in filter(None, notices):
                 print(notice, file=sys.stderr)
         ray_started = connect(

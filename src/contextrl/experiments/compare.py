@@ -83,6 +83,10 @@ def compare_runs(
     """Write one HTML report overlaying the runs at ``paths``; returns its path. Runs of different
     protocols, environments or varied features are refused (their returns do not share an axis),
     or with ``force`` overlaid with each run's label naming how it differs."""
+    resolved = [Path(p).resolve() for p in paths]
+    twice = sorted({str(p) for p, r in zip(paths, resolved, strict=True) if resolved.count(r) > 1})
+    if twice:
+        raise SpecError(f"report: {', '.join(twice)} given twice; give each run once")
     runs = [RunDir(p) for p in paths]
     specs = [run.spec() for run in runs]
     untrained = [spec.protocol for spec in specs if not spec.trains_agents]
