@@ -82,6 +82,10 @@ def refused(capsys, fragments, *argv) -> str:
         (["run", "visibility", "--set", "name=a/b", *DRY], ["names the run's folder"]),
         (["run", "visibility", "--set", "env=3", *DRY], ["env: expected a name (a string)"]),
         (["run", "visibility", "--variants", "", *DRY], ["variants: unknown variant ''"]),
+        (  # before: the last one won without a word
+            ["run", "visibility", "--vary", "length=uniform:0.2:0.4", "--vary", "length=0.3", *DRY],
+            ["--vary: length is given twice (uniform:0.2:0.4, 0.3); give it once"],
+        ),
         (  # before: --set won over --seeds without a word
             ["run", "visibility", "--set", "seeds=3", "--seeds", "4", *DRY],
             ["--set seeds=3 and --seeds 4 both set seeds; give one"],

@@ -119,12 +119,18 @@ def parse_assignments(
 ) -> dict[str, Any]:
     """Command-line ``NAME=VALUE`` items as ``{name: read(name, value)}`` (by default the value read
     as YAML): the one reader of ``--set``, ``--agent-option``, ``--vary`` and ``--test``. An item
-    without ``=``, a name or a value is refused in one line naming the option and the ``form``."""
-    out = {}
+    without ``=``, a name or a value is refused in one line naming the option and the ``form``; so is a
+    name given twice (which value was meant is not for the command to guess)."""
+    out, given = {}, {}
     for item in items:
         name, sep, value = (part.strip() for part in item.partition("="))
         if not sep or not name or not value:
             raise SpecError(f"{option}: expected {form}, got {item!r}")
+        if name in given:
+            raise SpecError(
+                f"{option}: {name} is given twice ({given[name]}, {value}); give it once"
+            )
+        given[name] = value
         out[name] = load_yaml(value, f"{option} {name}") if read is None else read(name, value)
     return out
 
