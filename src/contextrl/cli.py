@@ -172,6 +172,8 @@ def parse_assignments(items: Sequence[str]) -> dict[str, float | str]:
             name, sep, text = part.partition("=")
             if not sep or not name.strip() or not text.strip():
                 raise ContextError(f"expected FEATURE=VALUE, got {part!r}")
+            if name.strip() in values:
+                raise ContextError(f"--context: {name.strip()} is given twice; give it once")
             values[name.strip()] = _value(text.strip())
     return values
 

@@ -287,6 +287,13 @@ def test_render_refuses_more_frames_than_memory_holds(tmp_path, capsys, monkeypa
     assert status == 0 and "11 frames" in out
 
 
+def test_render_refuses_a_feature_given_twice(tmp_path, capsys):
+    """Before: ``--context length=0.5 --context length=1.5`` drew length 1.5 without a word."""
+    argv = ["--context", "length=0.5", "--context", "length=1.5", "--out", tmp_path / "x.gif"]
+    status, _, err = cli(capsys, "render", "CartPole", *argv)
+    one_line_error(status, err, "--context: length is given twice; give it once")
+
+
 def test_a_png_is_one_frame_and_says_so(tmp_path, capsys):
     """Before: a still of a two-panel grid reported "101 frames" (and drew them all)."""
     target = tmp_path / "grid.png"
