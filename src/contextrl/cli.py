@@ -357,7 +357,7 @@ def check_frames_fit(first: np.ndarray, steps: int) -> None:
 
 def run_render(args: argparse.Namespace) -> int:
     from contextrl.gymnasium.env import render_fps
-    from contextrl.render.animation import animation_format, write_animation
+    from contextrl.render.animation import GIF_MAX_FPS, animation_format, write_animation
 
     still = animation_format(args.out) == ".png"  # an unknown suffix is refused before rendering
     folder = Path(args.out).parent
@@ -373,6 +373,11 @@ def run_render(args: argparse.Namespace) -> int:
     names = [name for name, _ in grids]
     if len(set(names)) != len(names):
         raise ContextError(f"--grid: {names} names a feature twice; give each feature once")
+    both = sorted(set(names) & set(base))
+    if both:
+        raise ContextError(
+            f"--context and --grid both set {', '.join(both)}; give each feature in one of them"
+        )
     # several --grid flags combine: one panel per combination of their values
     contexts = [
         {**base, **dict(zip(names, values, strict=True))}
@@ -384,6 +389,11 @@ def run_render(args: argparse.Namespace) -> int:
         raise ContextError(f"--steps must be >= 0, got {args.steps}")
     if args.fps is not None and args.fps < 1:
         raise ContextError(f"--fps must be >= 1, got {args.fps}")
+    if args.fps is not None and args.fps > GIF_MAX_FPS and not still:
+        raise ContextError(
+            f"--fps {args.fps}: a GIF plays at most {GIF_MAX_FPS} frames per second (browsers "
+            f"slow faster ones down); give at most --fps {GIF_MAX_FPS}"
+        )
     steps = 0 if still else args.steps  # a still is the first frame: nothing to step
     with contextlib.closing(record(env_id, contexts, steps, args.seed)) as drawing:
         first = next(drawing)

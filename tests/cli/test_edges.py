@@ -131,6 +131,16 @@ def test_report_refuses_runs_of_different_features(tmp_path, capsys):
     one_line_error(status, err, "differ in features", "a: length", "b: gravity")
 
 
+def test_runs_naming_one_environment_two_ways_overlay(tmp_path, capsys):
+    """Before: a run of ``--env cartpole`` and one of CartPole were refused as differing in env;
+    a spec now holds the registry's id whatever spelling or alias named it."""
+    a = constructed_run(tmp_path, "a", "cartpole", CARTPOLE)
+    b = constructed_run(tmp_path, "b", "CARLCartPole", CARTPOLE)
+    assert a.spec().env == b.spec().env == "CartPole"
+    status, _, err = cli(capsys, "report", a.path, b.path, "--out", tmp_path / "x.html")
+    assert status == 0, err
+
+
 def test_report_refuses_a_run_given_twice(tmp_path, capsys):
     """Before: "several agents share a (seed, test set, context) cell; label each kind and
     variant apart"."""
@@ -292,6 +302,15 @@ def test_render_refuses_a_feature_given_twice(tmp_path, capsys):
     argv = ["--context", "length=0.5", "--context", "length=1.5", "--out", tmp_path / "x.gif"]
     status, _, err = cli(capsys, "render", "CartPole", *argv)
     one_line_error(status, err, "--context: length is given twice; give it once")
+    argv = ["--context", "length=0.5", "--grid", "length=1,1.5", "--out", tmp_path / "x.gif"]
+    status, _, err = cli(capsys, "render", "CartPole", *argv)  # before: the grid's values won
+    one_line_error(status, err, "--context and --grid both set length")
+
+
+def test_render_refuses_a_frame_rate_a_gif_cannot_play(tmp_path, capsys):
+    """Before: ``--fps 200`` wrote 20 ms frames, played at 50 frames per second."""
+    status, _, err = cli(capsys, "render", "CartPole", "--fps", "200", "--out", tmp_path / "x.gif")
+    one_line_error(status, err, "--fps 200: a GIF plays at most 50 frames per second")
 
 
 def test_a_png_is_one_frame_and_says_so(tmp_path, capsys):

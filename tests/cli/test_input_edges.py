@@ -96,7 +96,7 @@ def refused(capsys, fragments, *argv) -> str:
         ),
         (  # before: "backend: CartPole: unknown argument 'backend'"
             ["run", "quickstart", "--set", "backend=mjx", *DRY],
-            ["backend mjx: only the Brax and dm_control environments have a backend; CartPole"],
+            ["backend 'mjx': only the Brax and dm_control environments have a backend; CartPole"],
         ),
         (  # before: planned 10,000,000,000,000 training steps without a word
             ["run", "quickstart", "--timesteps", "1e12", *DRY],

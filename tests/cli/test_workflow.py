@@ -231,7 +231,7 @@ def test_dry_run_refuses_what_the_run_refuses(tmp_path, options, fragment):
 
 def test_ctrl_c_exits_at_once_with_a_resume_hint(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    argv = ["run", "visibility", "--timesteps", "200000", "--out", "run", "--max-steps", "500"]
+    argv = ["run", "visibility", "--timesteps", "204800", "--out", "run", "--max-steps", "500"]
     process = subprocess.Popen(
         [sys.executable, "-m", "contextrl.cli", *argv],
         cwd=tmp_path,
@@ -249,7 +249,8 @@ def test_ctrl_c_exits_at_once_with_a_resume_hint(tmp_path):
     assert "interrupted; resume with: contextrl run --resume run" in err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err
     assert (tmp_path / "run" / "spec.yaml").exists()
-    # It stopped where it was: not one chunk of 200,000 training steps per agent was finished.
+    # It stopped where it was: not one chunk of 204,800 training steps per agent was finished
+    # (400 whole rollouts, so no note on a rounded budget comes before the run directory).
     assert not list((tmp_path / "run").glob("results/*.parquet"))
 
 

@@ -429,6 +429,13 @@ def test_paper_page_refuses_a_runs_folder_that_does_not_exist(capsys, tmp_path):
             "folder `contextrl paper run --runs` wrote (default ./results/paper)"
         )
     assert not out.exists()
+    missing_folder = tmp_path / "no" / "paper.md"  # refused before the page reads any run
+    assert main(["paper", "page", "--runs", str(tmp_path), "--out", str(missing_folder)]) == 2
+    assert f"--out {missing_folder}: no folder {missing_folder.parent}" in capsys.readouterr().err
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    assert main(["paper", "run", "tabular_cmdp", "--runs", str(afile)]) == 2
+    assert f"--runs {afile} is a file; give a folder" in capsys.readouterr().err
 
 
 def test_a_withheld_verdict_reads_as_a_sentence(capsys, tmp_path, monkeypatch):

@@ -29,7 +29,7 @@ class EnvSpec:
         if backend is not None and self.family not in BACKEND_FAMILIES:
             families = " and ".join(BACKEND_FAMILIES.values())
             raise ValueError(
-                f"{option} {backend}: only the {families} environments have a backend; "
+                f"{option} {backend!r}: only the {families} environments have a backend; "
                 f"{self.id} ({self.family}) has none"
             )
 

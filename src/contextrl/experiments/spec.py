@@ -12,6 +12,7 @@ variant or key, an empty distribution, an empty or overlapping train/test split 
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import math
@@ -482,6 +483,9 @@ def parse_spec(data: Mapping[str, Any]) -> CommonSpec:
         values[name] = value
     if "name" not in values or not values["name"]:
         values["name"] = protocol
+    if values.get("env") is not None:  # an alias or another spelling names the same environment
+        with contextlib.suppress(KeyError):  # an unknown one is named by validate
+            values["env"] = crl.spec(values["env"]).id
     _fill_env_defaults(cls, values)
     spec = cls(**values)
     spec.validate()

@@ -27,6 +27,13 @@ def paper_command(args: argparse.Namespace) -> int:
             f"paper {args.action}: --runs {args.runs} is not a folder; give the folder "
             f"`contextrl paper run --runs` wrote (default ./{PAPER_RUNS})"
         )
+    elif args.action == "run" and Path(args.runs).exists() and not Path(args.runs).is_dir():
+        raise SpecError(f"paper run: --runs {args.runs} is a file; give a folder to write the runs")
+    if args.action == "page" and args.out != "-" and not Path(args.out).parent.is_dir():
+        raise SpecError(  # before the page is built: that reads every kept run
+            f"paper page: --out {args.out}: no folder {Path(args.out).parent}; create it or pick "
+            "another (- prints the page)"
+        )
     if args.action == "list":
         for row in figure_rows(args.runs):
             print(f"{row.pop('figure')}  ({row.pop('paper')})\n  claim: {row.pop('claim')}")
