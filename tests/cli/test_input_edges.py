@@ -6,6 +6,8 @@ or a folder not given, writing only where told, and the faces' own calls (gymnas
 Cheap by construction: dry runs without calibration, argument parsing, environments built once.
 """
 
+import importlib.util
+
 import gymnasium
 import numpy as np
 import pytest
@@ -186,6 +188,15 @@ def test_paper_reads_the_kept_runs_or_says_where_it_looked(capsys, tmp_path, mon
     assert (
         paper_runs.kept_runs() == paper_runs.REPOSITORY_RUNS
     )  # a checkout's runs, from any folder
+
+
+@pytest.mark.skipif(importlib.util.find_spec("Box2D") is None, reason="the box2d extra")
+def test_a_host_environments_time_limit_points_at_where_it_is_set():
+    """Before: ``crl.make("LunarLander", max_steps=5)`` said only "unknown argument"."""
+    import contextrl as crl
+
+    with pytest.raises(ValueError, match=r"ContextualGymEnv\('LunarLander', max_steps=N\)"):
+        crl.make("LunarLander", max_steps=5)
 
 
 def test_gymnasium_make_with_context_points_at_contexts():

@@ -47,11 +47,12 @@ class EnvSpec:
             if unknown is None or unknown.group(1) not in kwargs:  # not the caller's argument
                 raise
         name = unknown.group(1)
-        hint = (
-            "; a context is given as contexts= (a dict, a list of them, or distributions)"
-            if name == "context"
-            else ""
-        )
+        hints = {  # only a host environment's constructor lacks max_steps
+            "context": "; a context is given as contexts= (a dict, a list of them, or distributions)",
+            "max_steps": "; a host environment's time limit is set where it is stepped: "
+            f"ContextualGymEnv({self.id!r}, max_steps=N), or max_steps in a run's spec",
+        }
+        hint = hints.get(name, "")
         raise ValueError(f"{self.id}: unknown argument {name!r}{hint}") from None
 
 
