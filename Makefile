@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test test-order run bench bench-all bench-learning docs docs-gifs lint lock
+.PHONY: install system-deps test test-quick test-slow test-order run bench bench-all bench-learning docs docs-gifs lint lock
 
 # Debian packages some tests need (a headless GL for MuJoCo rendering, a real browser for the report).
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libgl1 libopengl0 chromium chromium-driver
@@ -35,13 +35,25 @@ system-deps:
 
 # Both cores, one test file per worker: a file's module fixtures (compiled programs, the PB2 runs, the
 # CLI's trained run) are built once. (pytest-xdist 3.8's loadgroup does not group tests under pytest 9.)
-test: system-deps install
-	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=25 \
-		--junitxml=.pytest_cache/junit.xml
+# Three tiers: `test` before every commit (every module and family; 15 minutes on 2 cores from a fresh
+# clone), `test-quick` after every edit (no learning, no large compiles; 90 s), `test-slow` for what
+# cannot be made cheap (whole-episode MJX statistics, the large Brax models, PB2 on Ray, the families'
+# own learning checks); CI runs `test` and `test-slow`.
+PYTEST := $(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
 
-# After a fresh clone's whole `make test`, as CI runs it: the test files' order, from its durations.
+test: system-deps install
+	$(PYTEST) -m "not slow" --durations=25 --junitxml=.pytest_cache/junit.xml
+
+test-quick: install
+	$(PYTEST) -m quick
+
+test-slow: system-deps install
+	$(PYTEST) -m slow --durations=25 --junitxml=.pytest_cache/junit-slow.xml
+
+# After a fresh clone's `make test` and `make test-slow`, as CI runs them: the test files' order and
+# the expected times (tests/file_durations.json), from their durations.
 test-order:
-	$(PY) tools/order_tests.py .pytest_cache/junit.xml
+	$(PY) tools/order_tests.py .pytest_cache/junit.xml --slow .pytest_cache/junit-slow.xml
 
 run: install
 	$(VENV)/bin/contextrl run quickstart

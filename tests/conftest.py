@@ -1,7 +1,8 @@
-"""Settings for every test process (each xdist worker and the subprocesses tests start), the ``egl``
-mark (MuJoCo's headless rendering tests skip, saying why, where EGL is missing), the order in which
-the two workers take the test files, and a fixture that stops a local Ray at the end of the file that
-started it."""
+"""Settings for every test process (each xdist worker and the subprocesses tests start), the tiers
+(``quick``: `make test-quick`, after every edit; ``slow``: `make test-slow`, the tests that cannot be made
+cheap), the ``egl`` mark (MuJoCo's headless rendering tests skip, saying why, where EGL is missing), the
+order in which the two workers take the test files, the guard that keeps a file's cost a decision, and a
+fixture that stops a local Ray at the end of the file that started it."""
 
 import ctypes.util
 import json
@@ -50,28 +51,80 @@ EGL_MISSING = ctypes.util.find_library("EGL") is None
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "egl: renders with MuJoCo headless, which needs EGL")
+    config.addinivalue_line(
+        "markers", "quick: in `make test-quick` (no learning, no large compiles)"
+    )
+    config.addinivalue_line(
+        "markers",
+        "slow: in `make test-slow` only; cannot be made cheap without losing what it proves",
+    )
+    if not hasattr(config, "workerinput"):  # the controller, or a run without xdist
+        config.pluginmanager.register(FileCosts(), "file_costs")
 
 
-# The order in which the two workers take the test files: longest first, as measured in a whole `make
-# test` and written by `python tools/order_tests.py .pytest_cache/junit.xml` (which also keeps the two
-# PB2 files from running at the same time). `make test` keeps this order (--no-loadscope-reorder) so
-# that the short files fill in at the end and both workers finish together; xdist's own order (most
-# tests first) hands out files of few long tests last. A file not yet measured goes after the others.
-FILE_ORDER = list(
-    json.loads((ROOT / "tests" / "file_durations.json").read_text(encoding="utf-8"))["files"]
-)
+# The order in which the two workers take the test files: longest first, as measured in a fresh clone's
+# `make test` and `make test-slow` and written by `make test-order` (tools/order_tests.py, which also
+# keeps the two PB2 files from running at the same time). The make targets keep this order
+# (--no-loadscope-reorder) so that the short files fill in at the end and both workers finish together;
+# xdist's own order (most tests first) hands out files of few long tests last. A file not yet measured
+# goes after the others.
+DURATIONS = json.loads((ROOT / "tests" / "file_durations.json").read_text(encoding="utf-8"))
+MEASURED = {tier: DURATIONS.get(tier, {}) for tier in ("files", "slow_files")}
+# A file whose tests take longer than this in one run, outside the slow tier, must have been measured
+# (be in tests/file_durations.json), so that its cost counts in the budget by decision, not by accident.
+UNMEASURED_FILE_LIMIT_S = 60.0
 
 
+def file_of(item_or_nodeid) -> str:
+    """The test file of an item or a report's node id, relative to tests/ (``envs/dmc/test_dmc.py``)."""
+    nodeid = getattr(item_or_nodeid, "nodeid", item_or_nodeid)
+    return nodeid.split("::")[0].removeprefix("tests/")
+
+
+@pytest.hookimpl(trylast=True)  # after `-m` has deselected: the tier is what is left
 def pytest_collection_modifyitems(items):
     for item in items:
         if EGL_MISSING and item.get_closest_marker("egl"):
             reason = "needs EGL for MuJoCo's headless rendering (libegl1 libgl1-mesa-dri: make system-deps)"
             item.add_marker(pytest.mark.skip(reason=reason))
-    rank = {name: i for i, name in enumerate(FILE_ORDER)}
-    tests = ROOT / "tests"
-    items.sort(
-        key=lambda item: rank.get(item.path.relative_to(tests).as_posix(), len(rank))
-    )  # stable
+    slow_tier = bool(items) and all(item.get_closest_marker("slow") for item in items)
+    rank = {name: i for i, name in enumerate(MEASURED["slow_files" if slow_tier else "files"])}
+    items.sort(key=lambda item: rank.get(file_of(item), len(rank)))  # stable
+
+
+class FileCosts:
+    """Sums each file's seconds in this run (setup, call and teardown: a module fixture's compile
+    counts) from the reports, which reach the controller under xdist, and fails the run when a file's
+    tests outside the slow tier took over UNMEASURED_FILE_LIMIT_S and the file was never measured."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+
+    def pytest_runtest_logreport(self, report):
+        if "slow" not in report.keywords:
+            name = file_of(report.nodeid)
+            self.seconds[name] = self.seconds.get(name, 0.0) + report.duration
+
+    def unmeasured(self) -> list[str]:
+        known = MEASURED["files"].keys() | MEASURED["slow_files"].keys()
+        return [
+            f"{name} took {seconds:.0f} s"
+            for name, seconds in sorted(self.seconds.items())
+            if seconds > UNMEASURED_FILE_LIMIT_S and name not in known
+        ]
+
+    def pytest_terminal_summary(self, terminalreporter):
+        for line in self.unmeasured():
+            terminalreporter.write_line(
+                f"{line} outside the slow tier and is not in tests/file_durations.json: mark its "
+                "expensive tests slow, or measure it (make test-order) so the budget counts it",
+                red=True,
+            )
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionfinish(self, session):
+        if self.unmeasured() and session.exitstatus == pytest.ExitCode.OK:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
 @pytest.fixture(scope="module")

@@ -1,15 +1,15 @@
-"""Write the order in which `make test`'s two workers take the test files, from measured durations.
+"""Write the order in which the two workers of `make test` and `make test-slow` take the test files.
 
-    python tools/order_tests.py .pytest_cache/junit.xml     # the report `make test` writes
+    python tools/order_tests.py .pytest_cache/junit.xml --slow .pytest_cache/junit-slow.xml
 
 Each file's seconds are the sum of its tests' times (setup, call and teardown: a module fixture's
-compile time counts) in pytest's JUnit report. Take the report of a fresh clone's `make test`, as CI
-runs it: a later run loads most programs from the suite's compilation cache (.pytest_cache/jax), so
-its durations understate CI's. The files are handed out longest first, so that the short ones fill
+compile time counts) in pytest's JUnit report. Take the reports of a fresh clone's `make test` and
+then `make test-slow`, as CI runs them: a later run loads most programs from the suite's compilation
+cache (.pytest_cache/jax), so its durations understate CI's. Each tier is ordered on its own. The files are handed out longest first, so that the short ones fill
 in at the end and both workers finish together. Two files that each start PB2 on a local Ray (APART)
 must not run at the same time: the order is simulated on two workers, and while their runs overlap
 the later one moves one place down. The result, `tests/file_durations.json`, is what
-tests/conftest.py reads.
+tests/conftest.py reads and what tests/repository/test_suite_budget.py holds to the tiers' budgets.
 """
 
 from __future__ import annotations
@@ -61,7 +61,11 @@ def schedule(order: list[str], seconds: dict[str, float]) -> dict[str, tuple[flo
 def ordered(seconds: dict[str, float]) -> list[str]:
     """Longest first, with the APART files moved until their runs do not overlap."""
     order = sorted(seconds, key=lambda name: (-seconds[name], name))
-    first, second = (name for name in order if name in APART) if all(n in seconds for n in APART) else (None, None)
+    first, second = (
+        (name for name in order if name in APART)
+        if all(n in seconds for n in APART)
+        else (None, None)
+    )
     while first is not None:
         spans = schedule(order, seconds)
         if spans[second][0] >= spans[first][1] or spans[first][0] >= spans[second][1]:
@@ -74,24 +78,42 @@ def ordered(seconds: dict[str, float]) -> list[str]:
     return order
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("junit", type=Path, help="pytest's --junitxml report of a whole `make test`")
-    args = parser.parse_args(argv)
-    if not args.junit.is_file():
-        parser.error(f"junit: {args.junit} is not a file; run `make test` first (it writes one)")
-    seconds = file_seconds(args.junit)
+def tier(junit: Path) -> tuple[list[str], dict[str, float], int]:
+    """The files of one tier in their order, their seconds and the expected seconds on WORKERS workers."""
+    seconds = file_seconds(junit)
     order = ordered(seconds)
     spans = schedule(order, seconds)
+    return order, seconds, round(max(end for _, end in spans.values()))
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "junit", type=Path, help="pytest's --junitxml report of a whole `make test`"
+    )
+    parser.add_argument("--slow", type=Path, required=True, help="the report of `make test-slow`")
+    args = parser.parse_args(argv)
+    for flag, path in (("junit", args.junit), ("--slow", args.slow)):
+        if not path.is_file():
+            parser.error(
+                f"{flag}: {path} is not a file; run `make test` and `make test-slow` first"
+            )
+    order, seconds, expected = tier(args.junit)
+    slow_order, slow_seconds, slow_expected = tier(args.slow)
     record = {
         "measured": datetime.date.today().isoformat(),
         "cores": os.cpu_count(),
         "workers": WORKERS,
-        "expected_seconds": round(max(end for _, end in spans.values())),
+        "expected_seconds": expected,
+        "expected_slow_seconds": slow_expected,
         "files": {name: round(seconds[name], 1) for name in order},
+        "slow_files": {name: round(slow_seconds[name], 1) for name in slow_order},
     }
     OUTPUT.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    print(f"{OUTPUT.relative_to(ROOT)}: {len(order)} files, about {record['expected_seconds']} s on {WORKERS} workers")
+    print(
+        f"{OUTPUT.relative_to(ROOT)}: {len(order)} files, about {expected} s on {WORKERS} workers; "
+        f"slow tier {len(slow_order)} files, about {slow_expected} s"
+    )
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ def test_dqn_learns_cartpole():
     assert np.all(statistics["first_rows"] < 100), statistics["first_rows"]
 
 
+@pytest.mark.slow  # DQN's loop learns above; C51's head is in the tests below
 def test_c51_learns_cartpole():
     """C51 (51 atoms on [0, 110], as in the paper), otherwise as the DQN test.
 

@@ -9,6 +9,8 @@ import contextrl as crl
 from contextrl.agents import ConfigError
 from contextrl.agents.networks import context_input, orthogonal, varying_features
 
+pytestmark = pytest.mark.quick
+
 
 @pytest.mark.parametrize("shape", [(4, 64), (64, 64), (64, 2), (7, 3)])
 def test_orthogonal_initialisation(shape):

@@ -6,6 +6,8 @@ import scipy.stats
 
 from contextrl.analysis import intervals, metrics
 
+pytestmark = pytest.mark.quick
+
 # 3 runs × 3 contexts; per-context means are [1, 30, 400].
 SCORES = np.array([[0.0, 10.0, 100.0], [1.0, 20.0, 200.0], [2.0, 60.0, 900.0]])
 

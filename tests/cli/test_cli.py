@@ -7,6 +7,8 @@ import contextrl as crl
 from contextrl.cli import main, parse_assignments, parse_grid
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.quick
+
 
 def test_list_shows_every_environment_with_its_counts(capsys):
     assert main(["list"]) == 0

@@ -19,6 +19,8 @@ from contextrl.context import ContextError, Uniform
 from contextrl.paper import runs as paper_runs
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.quick
+
 DRY = ["--dry-run"]
 
 

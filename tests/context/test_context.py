@@ -13,6 +13,8 @@ import contextrl as crl
 from contextrl.context import ContextBase, ContextError, FromSet, Resample, context_type, feature
 from contextrl.context.observation import ContextObservation
 
+pytestmark = pytest.mark.quick
+
 
 @context_type
 class VehicleContext(ContextBase):

@@ -11,6 +11,8 @@ from jax.experimental import checkify
 import contextrl as crl
 from contextrl.context.features import ContextError
 
+pytestmark = pytest.mark.quick
+
 
 @pytest.fixture(scope="module")
 def cartpole():

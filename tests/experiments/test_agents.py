@@ -53,6 +53,7 @@ def test_optimality_gap_with_ppo_trains_general_and_specialists(tmp_path):
     )
 
 
+@pytest.mark.slow  # a local Ray session; Ray's address rule: test_ray_loopback.py
 def test_ray_executor_matches_local(tmp_path, monkeypatch, capsys):
     """Same rows as here; each chunk's bar (reported by the Ray worker through a queue) is shown;
     the lines Ray prints while it starts are returned for the run's log, not shown."""

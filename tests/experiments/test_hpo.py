@@ -155,6 +155,7 @@ def pb2_runs(tmp_path_factory):
     return runs
 
 
+@pytest.mark.slow  # PB2 on a local Ray: pb2_runs
 def test_terminal_shows_a_line_per_round_and_ray_writes_to_the_run_log(pb2_runs):
     """Tune's status tables and Ray's log lines, from starting the local Ray instance on, go to
     ray/ray.log in the run, not the terminal."""
@@ -173,6 +174,7 @@ def schedule(out) -> pd.DataFrame:
     return pd.read_parquet(out / "curves" / "chunk-0000.parquet")
 
 
+@pytest.mark.slow  # PB2 on a local Ray: pb2_runs
 def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_path):
     out = pb2_runs[0]
     frame = schedule(out)
@@ -203,6 +205,7 @@ def test_pb2_tunes_ppo_and_the_best_config_feeds_another_protocol(pb2_runs, tmp_
     assert parse_spec(spec_from_args(args)).agent_options == best
 
 
+@pytest.mark.slow  # PB2 on a local Ray: pb2_runs
 def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):
     """The first PB2 run does not depend on how many follow it; the second search is another one."""
     first, second = pb2_runs
@@ -226,6 +229,7 @@ def test_same_seed_gives_the_same_schedules_and_best_configuration(pb2_runs):
     assert check_report(second) > 0  # a best-configuration row per run, equal to the results
 
 
+@pytest.mark.slow  # PB2 on a local Ray: pb2_runs
 def test_pb2_changes_hyperparameters_between_rounds(pb2_runs):
     """An exploit/explore step happened: a member's hyper-parameters differ between two rounds, and
     each change took the parameters of the better member (its return before the step is lower)."""

@@ -79,6 +79,8 @@ CASES = [
     ("hpo", "dqn", "CartPole"),
     ("hpo", "sac", "LunarLanderContinuous"),
 ]
+# PB2 starts a local Ray session (about a minute on two cores): in `make test-slow`.
+SLOW = {"hpo"}
 
 
 pytestmark = pytest.mark.usefixtures("shut_down_ray")  # conftest.py
@@ -132,7 +134,11 @@ def results(out) -> pd.DataFrame:
     )
 
 
-@pytest.mark.parametrize(("protocol", "agent", "env"), CASES, ids=["-".join(c) for c in CASES])
+@pytest.mark.parametrize(
+    ("protocol", "agent", "env"),
+    [pytest.param(*c, marks=[pytest.mark.slow] if c[0] in SLOW else []) for c in CASES],
+    ids=["-".join(c) for c in CASES],
+)
 def test_protocol_runs_with_agent_from_the_command_line(protocol, agent, env, tmp_path, capsys):
     if protocol == "hpo":
         pytest.importorskip("ray")

@@ -14,6 +14,8 @@ from contextrl.experiments import RunDir, expand, parse_spec, report
 from contextrl.experiments.reports import learning_section
 from contextrl.experiments.runs import write_parquet
 
+pytestmark = pytest.mark.quick
+
 # 2 seeds × 2 contexts. Hand computation (see each test):
 GENERAL = np.array([[1.0, 3.0], [2.0, 6.0]])
 SPECIALISTS = np.array([[4.0, 5.0], [2.0, 7.0]])

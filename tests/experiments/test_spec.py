@@ -16,6 +16,8 @@ from contextrl.experiments import (
 from contextrl.experiments.train_test import REGIONS, region_of, train_test_contexts
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.quick
+
 BAD_SPECS = [
     ({"protocol": "nope"}, "unknown protocol 'nope'"),
     ({"protocol": "visibility", "env": "CartPool"}, "unknown environment 'CartPool'"),

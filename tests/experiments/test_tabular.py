@@ -13,6 +13,8 @@ from contextrl.experiments.tabular import (
     value_iteration,
 )
 
+pytestmark = pytest.mark.quick
+
 
 def test_three_state_example_gap_is_exact():
     solution = solve(three_state_cmdp())

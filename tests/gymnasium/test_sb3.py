@@ -7,6 +7,9 @@ pytest.importorskip("stable_baselines3")
 from tests.helpers import learning
 
 
+# SB3 runs unchanged on the faces in make test: tests/carl/test_carl.py (DQN on a CARL id) and
+# tests/envs/dmc/test_dmc_example.py (PPO on dm_control); its learning is checked here, in the slow tier.
+@pytest.mark.slow
 def test_sb3_ppo_learns_cartpole_with_resampled_pole_lengths():
     """examples/sb3_ppo_cartpole.py as users run it, 60k steps, seed 0; the greedy policy's mean return
     at the default context (the untrained policy scores below 100).

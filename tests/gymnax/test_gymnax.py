@@ -99,6 +99,7 @@ def test_params_are_contexts_and_vmap_gives_each_copy_its_own():
     np.testing.assert_allclose(single_obs, obs[2], rtol=1e-6)
 
 
+@pytest.mark.slow  # PPO learns CartPole in tests/agents/test_ppo.py; the gymnax calls: above
 def test_purejaxrl_style_ppo_learns_contextual_cartpole():
     """examples/purejaxrl_ppo_cartpole.py unchanged (100k steps, a pole length per copy), seeds 0–3 in
     one vmapped call: the mean return of the first 5 updates and of the last 10 %.

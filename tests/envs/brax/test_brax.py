@@ -35,8 +35,19 @@ from tests.helpers.brax_rollouts import (  # noqa: E402
     rollouts,
 )
 
+# In make test: Ant (contacts, and CARL's failure below shares its program), Hopper (the goal test
+# shares its program) and InvertedPendulum; the other tasks run the same code in `make test-slow`.
+EVERY_EDIT = ("Ant", "Hopper", "InvertedPendulum")
 
-@pytest.mark.parametrize("name", [name for name in NAMES if name not in LARGE])
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        name if name in EVERY_EDIT else pytest.param(name, marks=pytest.mark.slow)
+        for name in NAMES
+        if name not in LARGE
+    ],
+)
 def test_default_context_matches_brax_and_every_feature_acts(name):
     rows, ours, theirs = rollouts(name, **CONFIGURATIONS[name])
     assert_matches_brax(ours, theirs)

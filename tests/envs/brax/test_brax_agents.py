@@ -46,6 +46,7 @@ def test_time_limit_truncates_through_the_gymnasium_face():
     env.close()
 
 
+@pytest.mark.slow  # SAC's compiled loop learns in tests/agents/test_sac.py
 def test_sac_learns_inverted_pendulum():
     """SAC, 3,000 steps (2 copies, 500 random warm-up transitions, then an update per step), seeds
     0–3 in one vmapped call: the mean episode return of the first and the last of six log rows.

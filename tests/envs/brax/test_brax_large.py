@@ -20,6 +20,10 @@ from tests.helpers.brax_rollouts import (  # noqa: E402
     rollouts,
 )
 
+# In `make test-slow`: the family's parity and feature checks run on the smaller tasks in
+# test_brax.py, through the same programs (tests/helpers/brax_rollouts.py).
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("name", LARGE)
 def test_default_context_matches_brax_and_every_feature_acts(name):

@@ -184,6 +184,7 @@ def test_the_claw_picks_up_the_object_and_carries_it_to_a_target():
     assert np.asarray(weak)[:, 2].max() < 1.5
 
 
+@pytest.mark.slow  # the checker's probes on Grasp's program; its physics: the tests above
 def test_public_checker_passes_on_grasp():
     """The full checker, each feature probed in 64 (context pair, key) runs of 10 random steps. The
     fewest runs showing a declared effect, measured under the suite's flags: 51 of 64

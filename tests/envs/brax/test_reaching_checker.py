@@ -13,6 +13,10 @@ if importlib.util.find_spec("brax") is None:
 from contextrl.envs import brax as family  # noqa: E402
 from contextrl.testing import check_env  # noqa: E402
 
+# In `make test-slow`: the checker's 64 probes per feature on the arms' largest programs; the
+# contexts reaching each copy's physics are checked in test_reaching.py.
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize(("name", "max_steps"), [("Fetch", 20), ("Ur5e", 60)])
 def test_public_checker_passes_so_every_feature_acts(name, max_steps):

@@ -12,6 +12,10 @@ if importlib.util.find_spec("brax") is None:
 
 from tests.helpers import learning
 
+# In `make test-slow`: PPO's compiled loop learns in tests/agents/test_ppo.py; the tasks' rewards
+# and targets are checked by hand in test_reaching.py.
+pytestmark = pytest.mark.slow
+
 
 def test_ppo_fetch_reaches_the_targets_ahead_that_its_reward_pays_for():
     """PPO, 50k steps, seeds 0–1 in one vmapped call, on Fetch at target distance 0.1 (targets

@@ -98,7 +98,15 @@ def run_both(name: str, task: str | None = None):
     return rows, (np.asarray(ours[0]), np.asarray(ours[1])), (their_obs, their_reward)
 
 
-@pytest.mark.parametrize("name", DOMAINS)
+# In make test: PointMass and Walker (the cheapest programs, one with contacts); the other domains'
+# programs take a minute each to compile and run in `make test-slow`, with the other tasks and the
+# start-state rules. Every domain's model at its default context is dm_control's (test_dmc_models.py).
+EVERY_EDIT = ("DmcPointMass", "DmcWalker")
+
+
+@pytest.mark.parametrize(
+    "name", [n if n in EVERY_EDIT else pytest.param(n, marks=pytest.mark.slow) for n in DOMAINS]
+)
 def test_every_feature_steps_as_on_dm_control_from_the_same_state(name):
     rows, (obs, reward), (their_obs, their_reward) = run_both(name)
     for row, (label, _) in enumerate(rows):
@@ -106,6 +114,7 @@ def test_every_feature_steps_as_on_dm_control_from_the_same_state(name):
         np.testing.assert_allclose(reward[row], their_reward[row], err_msg=label, **TOLERANCE)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, task", [("DmcFinger", "turn_easy"), ("DmcFish", "upright")])
 def test_other_tasks_step_as_on_dm_control(name, task):
     _, (obs, reward), (their_obs, their_reward) = run_both(name, task)
@@ -113,6 +122,7 @@ def test_other_tasks_step_as_on_dm_control(name, task):
     np.testing.assert_allclose(reward, their_reward, **TOLERANCE)
 
 
+@pytest.mark.slow
 def test_quadruped_starts_at_dm_controls_contact_free_height():
     from dm_control.suite import quadruped
 
@@ -126,6 +136,7 @@ def test_quadruped_starts_at_dm_controls_contact_free_height():
         assert np.abs(np.linalg.norm(qpos[3:7]) - 1) < 1e-6
 
 
+@pytest.mark.slow
 def test_finger_starts_touch_nothing_as_dm_control_requires():
     env = crl.make("DmcFinger", backend="mjx")
     keys = jax.random.split(jax.random.key(1), 64)

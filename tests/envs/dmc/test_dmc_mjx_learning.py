@@ -12,6 +12,10 @@ pytest.importorskip("mujoco.mjx")
 
 from tests.helpers import learning  # noqa: E402
 
+# In `make test-slow`: PPO's compiled loop learns in tests/agents/test_ppo.py; this checks MJX's
+# dm_control family is learnable through it.
+pytestmark = pytest.mark.slow
+
 
 def test_ppo_pulls_the_point_mass_onto_its_target():
     """PPO, 50k steps, seeds 0–1 in one vmapped call, on PointMass on MJX with the ball starting

@@ -1,8 +1,13 @@
 """PPO learns to finish short platformer levels from the tile observation."""
 
 import numpy as np
+import pytest
 
 from tests.helpers import learning
+
+# In `make test-slow`: PPO's compiled loop learns in tests/agents/test_ppo.py; the levels' physics
+# and rewards are checked by hand in test_platformer.py.
+pytestmark = pytest.mark.slow
 
 
 def test_ppo_finishes_short_easy_levels():
