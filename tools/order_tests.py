@@ -5,10 +5,10 @@
 Each file's seconds are the sum of its tests' times (setup, call and teardown: a module fixture's
 compile time counts) in pytest's JUnit report. Take the reports of a fresh clone's `make test` and
 then `make test-slow`, as CI runs them: a later run loads most programs from the suite's compilation
-cache (.pytest_cache/jax), so its durations understate CI's. Each tier is ordered on its own. The files are handed out longest first, so that the short ones fill
-in at the end and both workers finish together. Two files that each start PB2 on a local Ray (APART)
-must not run at the same time: the order is simulated on two workers, and while their runs overlap
-the later one moves one place down. The result, `tests/file_durations.json`, is what
+cache (.pytest_cache/jax), so its durations understate CI's. Each tier is ordered on its own, its
+files handed out longest first, so that the short ones fill in at the end and both workers finish
+together. Two files that each start PB2 on a local Ray (APART) must not run at the same time: the
+order is simulated on two workers, and while their runs overlap the later one moves one place down. The result, `tests/file_durations.json`, is what
 tests/conftest.py reads and what tests/repository/test_suite_budget.py holds to the tiers' budgets.
 """
 
@@ -79,7 +79,7 @@ def ordered(seconds: dict[str, float]) -> list[str]:
 
 
 def tier(junit: Path) -> tuple[list[str], dict[str, float], int]:
-    """The files of one tier in their order, their seconds and the expected seconds on WORKERS workers."""
+    """A tier's files in their order, their seconds, and its expected seconds on WORKERS workers."""
     seconds = file_seconds(junit)
     order = ordered(seconds)
     spans = schedule(order, seconds)
