@@ -1,4 +1,5 @@
-"""The environment core: Env, TimeStep, spaces, the registry and context-scheduled environments."""
+"""The environment core: Env, TimeStep, spaces, the registry, context-scheduled environments and the
+return's gradient with respect to the context."""
 
 from contextrl.core.contextual import (
     ContextualEnv,
@@ -8,6 +9,7 @@ from contextrl.core.contextual import (
     with_contexts,
 )
 from contextrl.core.env import Env, EnvState, TimeStep, checked, tree_where
+from contextrl.core.gradient import context_gradient, return_of_context
 from contextrl.core.host import HostEnv
 from contextrl.core.registry import EnvSpec, make, register, registered, spec
 from contextrl.core.spaces import Box, Discrete
@@ -19,6 +21,7 @@ __all__ = [
     "Discrete",
     "checked",
     "choose_context",
+    "context_gradient",
     "Env",
     "EnvSpec",
     "EnvState",
@@ -28,6 +31,7 @@ __all__ = [
     "make_provider",
     "register",
     "registered",
+    "return_of_context",
     "spec",
     "tree_where",
     "with_contexts",

@@ -115,6 +115,10 @@ class Env(ContextHelpers):
     default_max_steps: ClassVar[int]
     # True when ``transition`` draws random numbers; otherwise the step key goes to the reset unsplit.
     stochastic_transition: ClassVar[bool] = False
+    # True when ``init``, ``transition`` and ``observe`` are differentiable functions of the float
+    # context features and any termination is a threshold that ``termination_margin`` measures
+    # (``contextrl.core.gradient`` differentiates the return through them).
+    differentiable: ClassVar[bool] = False
 
     def __post_init__(self):
         if self.max_steps is None:
@@ -147,6 +151,11 @@ class Env(ContextHelpers):
         caches from the model (a mass matrix depends on the masses). The checker compares these when it
         asks whether a feature changed the start state or the next state; by default the whole state."""
         return state
+
+    def termination_margin(self, state, context) -> jax.Array | None:
+        """How far ``state`` is from ending the episode, continuous in the state: negative once it has
+        terminated, zero or positive while it goes on. None for an environment that never terminates."""
+        return None
 
     def step_info(self, state, context) -> dict:
         """Facts about ``state`` for ``TimeStep.info`` (after a step: the state before any reset)."""

@@ -92,6 +92,7 @@ class CartPole(Env):
 
     context_type = CartPoleContext
     default_max_steps = 500
+    differentiable = True
 
     @property
     def action_space(self) -> Discrete:
@@ -113,6 +114,11 @@ class CartPole(Env):
 
     def observe(self, state, context) -> jax.Array:
         return state
+
+    def termination_margin(self, state, context) -> jax.Array:
+        """The smaller of the cart's and the pole's distance to their limits, as fractions of them."""
+        x, theta = state[0], state[2]
+        return jnp.minimum(1 - jnp.abs(x) / X_THRESHOLD, 1 - jnp.abs(theta) / THETA_THRESHOLD)
 
     def host_transition(self, state, action: int, context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""

@@ -96,6 +96,7 @@ class Pendulum(Env):
 
     context_type = PendulumContext
     default_max_steps = 200
+    differentiable = True
 
     @property
     def action_space(self) -> Box:
