@@ -3,12 +3,15 @@ the tiny budget; the claim checks decide from intervals; the results page is gen
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import os
 import re
 import shutil
+import types
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -18,18 +21,32 @@ from contextrl.experiments.plan import trial_columns
 from contextrl.experiments.runner import run_experiment
 from contextrl.experiments.runs import RunDir, write_parquet
 from contextrl.experiments.spec import parse_spec
-from contextrl.paper import FIGURES, PAPER_RUNS, SCALES, results_page, run_figure, spec_data
-from contextrl.paper.catalogue import SPEC_FOLDER
+from contextrl.paper import (
+    FIGURES,
+    PAPER_RUNS,
+    SCALES,
+    PaperFigure,
+    checks,
+    results_page,
+    run_figure,
+    spec_data,
+)
+from contextrl.paper.catalogue import CAUSES, SPEC_FOLDER
 from contextrl.paper.checks import (
     BRITTLE,
     EQUIVALENCE,
     GATE,
     HARMLESS,
+    MARGIN_RULE,
     MIN_SEEDS,
+    Check,
     Verdict,
     _all,
     _decide,
     _zone,
+    better_check,
+    gap_check,
+    similar_check,
 )
 from contextrl.paper.plans import planned, training_steps
 from contextrl.paper.runs import (
@@ -178,7 +195,9 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     assert gap.word == "no verdict" and gap.holds is False
     assert "(95% CI; each needs to lie above 30)" in gap.evidence
     exact, _ = run_figure("tabular_cmdp", "tiny", root=paper_runs, progress=False)
-    assert exact.holds is True and exact.word == "holds" and "3-state cMDP: 3;" in exact.evidence
+    assert (
+        exact.holds is True and exact.word == "reproduced" and "3-state cMDP: 3;" in exact.evidence
+    )
     for name in ("tabular_cmdp", "optgap_cartpole", "baseline_mountaincar_default"):
         assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
@@ -219,7 +238,9 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     assert f"even if each of the {untrained} specialists not yet trained returned 20 " in (
         settled.evidence
     )
-    assert "Whatever the unfinished chunks give, its intervals would say *does not hold*" in section
+    assert (
+        "Whatever the unfinished chunks give, its intervals would say *not reproduced*" in section
+    )
     # the same at the small budget, where nothing has finished: it replaces "Not run yet"
     small = paper_runs / "partial-small" / "optgap_cartpole-small"
     shutil.copytree(partial, small)
@@ -304,8 +325,9 @@ def test_a_figure_whose_full_budget_does_not_fit_is_decided_at_the_small_budget(
         "steps each"
     ) in section
     assert (
-        "a deviation: the full budget does not fit two CPU cores, see below): the claim **holds**. "
-        "mean test return hidden − concat_all = 200 ["
+        "a deviation: the full budget does not fit two CPU cores, see below): **reproduced** (the "
+        "margin is the library's: *reproduced* at half of it, *reproduced* at it, *reproduced* at "
+        "twice it). mean test return hidden − concat_all = 200 ["
     ) in section
     assert "hidden -98, concat_all -298; trained vs random return" in section  # -100 + 0..4
     assert (
@@ -402,8 +424,9 @@ def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
     assert page == results_page(PAPER_RUNS) + "\n", "regenerate it: contextrl paper page"
     for name in FIGURES:
         assert f"## {name}\n" in page
+    assert CAUSES in page and MARGIN_RULE.split(": ")[1] in page
     tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
-    assert "**Solved exactly** (exact solution; " in tabular and "the claim **holds**" in tabular
+    assert "**Solved exactly** (exact solution; " in tabular and "): **reproduced**." in tabular
     for name in ("visibility_pendulum", "ecdf_pendulum", "kirk_pendulum_gravity_length"):
         section = page.split(f"## {name}\n")[1].split("\n## ")[0]
         assert "- **At full budget** (" in section and "over seeds" in section
@@ -450,9 +473,138 @@ def test_a_withheld_verdict_reads_as_a_sentence(capsys, tmp_path, monkeypatch):
     assert printed == (
         "ecdf_pendulum (tiny budget): no verdict on the claim (2 seeds, fewer than 5). drops ...."
     )
-    assert Verdict(None, "e").sentence("**") == "the claim **undecided**"
+    assert Verdict(None, "e").sentence("**") == "**undecided**"
     with pytest.raises(SystemExit):
         main(["paper", "--help"])
     assert "a claim solved exactly is decided at every scale" in " ".join(
         capsys.readouterr().out.split()
     )
+
+
+def test_verdicts_read_as_reproductions():
+    """Each state in the reproduction's words: a claim not reproduced says at what budget and
+    settings and names its likely cause; a withheld verdict says why."""
+    assert Verdict(True, "e").sentence("**") == "**reproduced**"
+    assert Verdict(None, "e").sentence() == "undecided"
+    failed = Verdict(False, "e", at="1,000 training steps", cause="a substituted agent")
+    assert failed.word == "not reproduced"
+    assert failed.sentence() == (
+        "not reproduced at 1,000 training steps (most likely cause: a substituted agent)"
+    )
+    withheld = Verdict(False, "e", "3 seeds, fewer than 5")
+    assert withheld.word == "no verdict"
+    assert withheld.sentence() == "no verdict on the claim (3 seeds, fewer than 5)"
+
+
+class _Scores:
+    matrix = np.zeros((1, 1))
+
+
+@pytest.mark.parametrize(
+    ("check", "interval", "margins", "word"),
+    [
+        # better: reproduced above 0, not reproduced below 10 % of the gain of 200 (20)
+        (better_check("a", "b"), (5.0, -5.0, 15.0), (None, False, False), "undecided"),
+        (better_check("a", "b"), (5.0, -5.0, 8.0), (False, False, False), "not reproduced"),
+        (better_check("a", "b"), (5.0, 1.0, 8.0), (True, True, True), "reproduced"),
+        # no difference: reproduced inside ± 20, not reproduced outside it
+        (similar_check("a", "b"), (0.0, -15.0, 15.0), (None, True, True), "undecided"),
+        (similar_check("a", "b"), (0.0, -8.0, 8.0), (True, True, True), "reproduced"),
+        (similar_check("a", "b"), (60.0, 50.0, 70.0), (False, False, False), "not reproduced"),
+    ],
+)
+def test_a_verdict_that_changes_between_half_and_twice_the_librarys_margin_is_undecided(
+    check, interval, margins, word, monkeypatch
+):
+    """The rule applied at half, at and at twice its margin (a fraction of the gain the library
+    chose, not the paper) to the same interval: where the three differ the verdict is undecided,
+    else it is theirs; the page shows all three."""
+    scores = {"a": _Scores(), "b": _Scores()}
+    monkeypatch.setattr(
+        checks, "_variant_difference", lambda runs, a, b: (scores, Interval(*interval), "seeds")
+    )
+    verdict = check.decide({}, 200.0)
+    assert verdict.margins == margins and verdict.word == word
+    assert "The margin is the library's, not the paper's" in check.rule
+    assert f"*{checks.WORDS[margins[0]]}* at half of it" in verdict.sentence("**")
+    assert ("undecided, as the verdict changes across them" in verdict.sentence()) == (
+        len(set(margins)) > 1
+    )
+
+
+def test_the_sensitivity_zones_scale_with_the_margin():
+    gain = 200.0  # harmless below 20, brittle above 100; at half: 10 and 50; at twice: 40, 200
+    drop = Interval(30.0, 25.0, 35.0)
+    assert [_zone(drop, gain, scale) for scale in (0.5, 1.0, 2.0)] == [
+        "moderate",
+        "moderate",
+        "harmless",
+    ]
+    assert _zone(Interval(60.0, 55.0, 65.0), gain, 0.5) == "brittle"
+
+
+def _not_reproduced(name: str) -> PaperFigure:
+    """Figure ``name`` with a check that finds its claim not reproduced, as a constructed result."""
+    return dataclasses.replace(
+        FIGURES[name], check=Check("rule", lambda runs, gain: Verdict(False, "e"), gated=False)
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "cause"),
+    [
+        ("pb2_pendulum", "a substituted agent (the settings say which, and why)"),
+        ("visibility_pendulum", "the budget, chosen here (the budget line says why)"),
+        (
+            "kirk_cartpole",
+            "a budget below the authors' ({small:,} of their {paper:,} training steps)",
+        ),
+    ],
+)
+def test_a_claim_not_reproduced_names_its_budget_settings_and_most_likely_cause(
+    name, cause, tmp_path
+):
+    """The first cause the runs show, by the rule the page states: a substituted agent where the
+    settings say so (PB2 on Pendulum runs SAC for DDPG); else the budget, below the authors' where
+    the spec records theirs (Kirk's CartPole: 100,000 steps) and else chosen here."""
+    figure = _not_reproduced(name)
+    runs = {
+        part: RunDir.create(parse_spec(spec_data(figure, part, "small")), out=tmp_path / part)
+        for part in figure.files()
+    }
+    steps = {
+        scale: sum(training_steps(parse_spec(spec_data(figure, p, scale))) for p in runs)
+        for scale in ("paper", "small")
+    }
+    verdict = figure.verdict(runs)
+    agent = runs[next(iter(runs))].spec().agent
+    seeds = runs[next(iter(runs))].spec().seeds
+    assert verdict.at == (
+        f"{steps['small']:,} training steps, {seeds} seeds and the settings stated ({agent})"
+    )
+    assert verdict.cause == cause.format(**steps)
+    assert verdict.sentence().endswith(f"(most likely cause: {verdict.cause})")
+
+
+def test_a_gap_not_reproduced_at_the_return_ceiling_names_it(monkeypatch):
+    """CartPole's general agent at the 500 an episode can return leaves no room for specialists 30
+    better: that is the cause named, before any budget or setting (constructed statistics)."""
+    spec = parse_spec(spec_data(FIGURES["optgap_cartpole"], "optgap_cartpole", "small"))
+    at_ceiling = Interval(0.0, -1.0, 5.0)
+    stats = types.SimpleNamespace(
+        general=types.SimpleNamespace(matrix=np.full((3, 8), 500.0)),
+        differences={"mean": at_ceiling, "median": at_ceiling, "IQM": at_ceiling},
+        finished={},
+        improvement=Interval(0.5, 0.4, 0.6),
+        per_seed=lambda: {"general": [500.0], "specialists": [500.0]},
+    )
+    monkeypatch.setattr(checks, "_cells", lambda run: (spec, None))
+    monkeypatch.setattr(checks, "gap_statistics", lambda *a, **k: {spec.variants[0]: stats})
+    verdict = gap_check(30.0, most_per_step=1.0).decide({"optgap_cartpole": None}, 400.0)
+    assert verdict.holds is False and not verdict.margins  # the paper's own margin
+    assert verdict.cause == (
+        "the general agent at the return ceiling (its IQM test return 500 of at most 500), which "
+        "leaves the specialists no room to beat it by 30"
+    )
+    stats.general.matrix = np.full((3, 8), 400.0)
+    assert gap_check(30.0, most_per_step=1.0).decide({"optgap_cartpole": None}, 400.0).cause == ""

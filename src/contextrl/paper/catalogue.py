@@ -12,11 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from contextrl.agents import ConfigError
+from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import SpecError, load_yaml, parse_spec
 from contextrl.paper.checks import (
     GATE,
     MIN_SEEDS,
     Check,
+    Verdict,
     better_check,
     gap_check,
     kirk_check,
@@ -24,9 +26,19 @@ from contextrl.paper.checks import (
     similar_check,
     tabular_check,
 )
+from contextrl.paper.plans import training_steps
 
 SPEC_FOLDER = Path(__file__).resolve().parent / "specs"
 SCALES = ("paper", "small", "tiny")
+# A settings line that says the figure's agent stands in for the paper's
+SUBSTITUTED = re.compile(r"the paper used|a disclosed deviation from the paper's agent")
+CAUSES = (
+    "A *not reproduced* names the first of these the runs show as its most likely cause: an agent "
+    "at the return ceiling (no room left for the difference the claim needs); a substituted agent "
+    "(the figure's settings say its agent stands in for the paper's); a budget below the authors' "
+    "(where the spec records theirs); else the budget, chosen here (the figure's budget line says "
+    "why), where the spec records none of the authors'."
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,6 +79,33 @@ class PaperFigure:
     def rule(self) -> str:
         """The decision rule, as the spec's ``# Decision:`` line and the page state it."""
         return self.check.rule + (f" {GATE}" if self.check.gated else "")
+
+    def verdict(self, runs: Mapping[str, RunDir], settled: bool = False) -> Verdict | None:
+        """The check's verdict on ``runs`` (``settled``: what the finished chunks of runs under way
+        already fix, or None), a claim not reproduced with the budget and settings it was not
+        reproduced at and its most likely cause, by the rule CAUSES states."""
+        found = self.check.settled(runs) if settled else self.check(runs)
+        if found is None or found.withheld or found.holds is not False:
+            return found
+        specs = {part: run.spec() for part, run in runs.items()}
+        steps = sum(training_steps(spec) for spec in specs.values())
+        seeds = min(spec.seeds for spec in specs.values())
+        agents = " and ".join(sorted({spec.agent for spec in specs.values()}))
+        at = f"{steps:,} training steps, {seeds} seeds and the settings stated ({agents})"
+        return dataclasses.replace(found, at=at, cause=found.cause or self._cause(specs, steps))
+
+    def _cause(self, specs: Mapping[str, Any], steps: int) -> str:
+        """The most likely cause of a claim not reproduced, short of an agent at the ceiling
+        (which the check itself sees): a substituted agent, then the budget."""
+        settings = " ".join(self.header("Settings", part) for part in specs)
+        if SUBSTITUTED.search(settings):
+            return "a substituted agent (the settings say which, and why)"
+        if not self.stated_budget:
+            return "the budget, chosen here (the budget line says why)"
+        theirs = sum(training_steps(parse_spec(spec_data(self, p, "paper"))) for p in specs)
+        if steps < theirs:
+            return f"a budget below the authors' ({steps:,} of their {theirs:,} training steps)"
+        return "none the runs show: the budget and settings are the authors'"
 
     @property
     def stated_budget(self) -> bool:

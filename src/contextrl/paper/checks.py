@@ -29,11 +29,19 @@ from contextrl.paper.plans import planned
 
 # The decision rules, fixed before any run. A verdict needs this many seeds (the unit of replication)
 MIN_SEEDS = 5
-# "No difference" holds inside ± this fraction of the agents' gain over a random policy at their
-# training contexts; a "better" claim does not hold when the difference stays below it.
+# "No difference" is reproduced inside ± this fraction of the agents' gain over a random policy at
+# their training contexts; a "better" claim is not reproduced when the difference stays below it.
 EQUIVALENCE = 0.10
 # A feature is harmless when its drop stays below HARMLESS × the gain, brittle above BRITTLE ×.
 HARMLESS, BRITTLE = 0.10, 0.50
+# These margins are the library's, not the paper's: a verdict is also drawn at these multiples of
+# them, and one that changes across them is undecided.
+MARGIN_SCALES = (0.5, 1.0, 2.0)
+MARGIN_RULE = (
+    "The margin is the library's, not the paper's: the verdict is also drawn at half and at twice "
+    "it, and one that changes across that range is undecided."
+)
+WORDS = {True: "reproduced", False: "not reproduced", None: "undecided"}
 GATE = (
     f"No verdict from fewer than {MIN_SEEDS} seeds, or where an agent does not beat a random policy "
     f"at its training contexts by {LEARNED_MARGIN:.0%} of max(|random return|, 1)."
@@ -42,28 +50,53 @@ GATE = (
 
 @dataclasses.dataclass(frozen=True)
 class Verdict:
-    """Whether a claim holds at the budget it ran at (None: the intervals do not decide it), or,
-    where ``withheld`` says why, no verdict at all: the evidence and what its intervals alone would
-    say (``holds``) are then shown, not judged. ``gate_only``: withheld by the learnability gate on
-    runs under way, before any interval was computed (``holds`` says nothing then)."""
+    """Whether the paper's claim was reproduced at the budget it ran at (``holds``; None: the
+    intervals do not decide it), or, where ``withheld`` says why, no verdict at all: the evidence
+    and what its intervals alone would say are then shown, not judged. ``gate_only``: withheld by
+    the learnability gate on runs under way, before any interval was computed (``holds`` says
+    nothing then).
+
+    ``margins``: where the rule's margin is the library's, the verdicts at half, at and at twice it
+    (``holds`` is undecided where they differ), so a reader sees how much the margin decides.
+    ``at`` and ``cause``: for a claim not reproduced, the budget and settings it was not reproduced
+    at, and the most likely cause the runs show (see :meth:`PaperFigure.verdict`)."""
 
     holds: bool | None
     evidence: str
     withheld: str = ""
     gate_only: bool = False
+    margins: tuple[bool | None, ...] = ()
+    at: str = ""
+    cause: str = ""
 
     @property
     def word(self) -> str:
-        if self.withheld:
-            return "no verdict"
-        return {True: "holds", False: "does not hold", None: "undecided"}[self.holds]
+        return "no verdict" if self.withheld else WORDS[self.holds]
 
     def sentence(self, emphasis: str = "") -> str:
-        """The verdict as words: "the claim holds", or "no verdict on the claim (why)";
-        ``emphasis`` wraps the verdict (``**`` on the page)."""
+        """The verdict as words: "reproduced", "not reproduced at … (most likely cause: …)", or
+        "no verdict on the claim (why)", with the margins' verdicts where the margin is the
+        library's; ``emphasis`` wraps the verdict (``**`` on the page)."""
         if self.withheld:
             return f"{emphasis}no verdict{emphasis} on the claim ({self.withheld})"
-        return f"the claim {emphasis}{self.word}{emphasis}"
+        text = f"{emphasis}{self.word}{emphasis}"
+        if self.holds is False and self.at:
+            text += f" at {self.at} (most likely cause: {self.cause})"
+        return text + self.margin_words(emphasis[:1])
+
+    def margin_words(self, emphasis: str = "") -> str:
+        """What the verdict is at half, at and at twice the library's margin ("" where the margin
+        is the paper's or the rule has none); ``emphasis`` wraps each verdict."""
+        if not self.margins:
+            return ""
+        said = ", ".join(
+            f"{emphasis}{WORDS[found]}{emphasis} at {where}"
+            for where, found in zip(("half of it", "it", "twice it"), self.margins, strict=True)
+        )
+        flips = len(set(self.margins)) > 1
+        return f" (the margin is the library's: {said}" + (
+            "; undecided, as the verdict changes across them)" if flips else ")"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,7 +180,7 @@ class Check:
             return None
         spec = next(iter(runs.values())).spec()
         if not spec.agent_entry().trained:
-            return Verdict(found.holds, found.evidence, f"the {spec.agent} agent does not learn")
+            return dataclasses.replace(found, withheld=f"the {spec.agent} agent does not learn")
         evidence = f"{found.evidence}; {learned_}"
         reasons = []
         seeds = _seeds(runs)
@@ -157,7 +190,7 @@ class Check:
         if not learned_.returns or failed:
             which = ", ".join(failed) or "no agent has a training record"
             reasons.append(f"the agent did not learn at this budget: {which}")
-        return Verdict(found.holds, evidence, "; ".join(reasons))
+        return dataclasses.replace(found, evidence=evidence, withheld="; ".join(reasons))
 
 
 def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
@@ -193,6 +226,14 @@ def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
     )
 
 
+def _over_margins(judge: Callable[[float], bool | None], evidence: str) -> Verdict:
+    """The verdict of ``judge(scale)`` (the rule with its library-chosen margin times ``scale``) at
+    each of MARGIN_SCALES: the one at the margin itself where all agree, else undecided."""
+    found = tuple(judge(scale) for scale in MARGIN_SCALES)
+    holds = found[MARGIN_SCALES.index(1.0)] if len(set(found)) == 1 else None
+    return Verdict(holds, evidence, margins=found)
+
+
 def _decide(interval: Interval, above: float = 0.0) -> bool | None:
     """True when the interval lies above ``above``, False when below, else None."""
     if interval.low > above:
@@ -223,23 +264,39 @@ def gap_check(at_least: float, finished: bool = False, most_per_step: float | No
     trained: the specialists not yet trained, each put at that most in every test episode, give
     intervals no finished run can exceed (every replicate of the bootstrap draws the same seeds and
     contexts whatever the returns, and mean, median and IQM never fall when a return rises), so an
-    interval of them below ``at_least`` already says the claim does not hold."""
+    interval of them below ``at_least`` already says the claim is not reproduced. Such a verdict
+    names the general agent at that most as its cause where its IQM test return is within 1 % of
+    it."""
     parts = "mean, median and IQM" + (" and the fraction of finished episodes" if finished else "")
     rule = (
-        f"holds when the 95% intervals of the specialists' minus the general agent's mean, median "
+        f"reproduced when the 95% intervals of the specialists' minus the general agent's mean, "
+        "median "
         f"and IQM test return all lie above {at_least:g}"
         + (
             " and that of the fraction of finished episodes (cells at the best return) above 0"
             if finished
             else ""
         )
-        + "; does not hold when one of them lies below; undecided otherwise. Intervals resample "
+        + "; not reproduced when one of them lies below; undecided otherwise. Intervals resample "
         "the general agent's seeds (each with all its contexts) and the contexts, each with its "
         f"specialists ({parts})."
     )
 
     def statistics(cells: pd.DataFrame, spec):
         return gap_statistics(cells, spec.variants, **spec.design)[spec.variants[0]]
+
+    def at_ceiling(stats, spec) -> str:
+        """The general agent at the return ceiling, where it is: no room left to beat it."""
+        if most_per_step is None:
+            return ""
+        most = most_per_step * spec.make_env().max_steps
+        iqm = metrics.aggregate_iqm(stats.general.matrix)
+        if iqm < 0.99 * most:
+            return ""
+        return (
+            f"the general agent at the return ceiling (its IQM test return {iqm:.4g} of at most "
+            f"{most:g}), which leaves the specialists no room to beat it by {at_least:g}"
+        )
 
     def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
         (run,) = runs.values()
@@ -270,7 +327,7 @@ def gap_check(at_least: float, finished: bool = False, most_per_step: float | No
             f"P(specialist > general) = {stats.improvement}; mean return per seed: general "
             f"{_numbers(seeds['general'])}, specialists {_numbers(seeds['specialists'])}"
         )
-        return Verdict(_all(decisions), text)
+        return Verdict(_all(decisions), text, cause=at_ceiling(stats, spec))
 
     def settle(runs: Mapping[str, RunDir], gain: float) -> Verdict | None:
         (run,) = runs.values()
@@ -300,6 +357,7 @@ def gap_check(at_least: float, finished: bool = False, most_per_step: float | No
             "would be: "
             + ", ".join(f"{name} {d}" for name, d in stats.differences.items())
             + f" (95% CI), so {' and '.join(below)} {verb} below {at_least:g} whatever they return",
+            cause=at_ceiling(stats, spec),
         )
 
     return Check(rule, decide, settle=settle if most_per_step is not None else None)
@@ -336,21 +394,22 @@ def _difference_check(
     a: str, b: str, rule: str, decide: Callable[[Interval, float], bool | None], bounds: str
 ) -> Check:
     """A claim about mean test return ``a`` − ``b``: ``decide(interval, margin)`` says whether it
-    holds, the margin being EQUIVALENCE × the agents' gain; ``bounds`` (formatted with ``margin``
-    and ``gain``) says where the evidence stands against it."""
+    is reproduced, the margin being EQUIVALENCE × the agents' gain (and half and twice that, the
+    margin being the library's); ``bounds`` (formatted with ``margin`` and ``gain``) says where the
+    evidence stands against it."""
 
     def check(runs: Mapping[str, RunDir], gain: float) -> Verdict:
         scores, diff, over = _variant_difference(runs, a, b)
         margin = EQUIVALENCE * gain
-        return Verdict(
-            decide(diff, margin),
+        return _over_margins(
+            lambda scale: decide(diff, scale * margin),
             f"mean test return {a} − {b} = {diff} (95% CI over {over}; "
             + bounds.format(margin=margin, gain=gain)
             + "); "
             + _means(scores, a, b),
         )
 
-    return Check(rule, check)
+    return Check(f"{rule} {MARGIN_RULE}", check)
 
 
 def better_check(a: str, b: str) -> Check:
@@ -361,11 +420,12 @@ def better_check(a: str, b: str) -> Check:
         return True if diff.low > 0 else (False if diff.high < margin else None)
 
     rule = (
-        f"holds when the 95% interval of mean test return {a} − {b} lies above 0; does not hold "
-        f"when it lies below {EQUIVALENCE:.0%} of the agents' gain over a random policy at their "
-        "training contexts (not better by a meaningful amount); undecided otherwise."
+        f"reproduced when the 95% interval of mean test return {a} − {b} lies above 0; not "
+        f"reproduced when it lies below {EQUIVALENCE:.0%} of the agents' gain over a random policy "
+        "at their training contexts (not better by a meaningful amount); undecided otherwise."
     )
-    return _difference_check(a, b, rule, decide, "holds above 0, does not hold below {margin:.4g}")
+    bounds = "reproduced above 0, not reproduced below {margin:.4g}"
+    return _difference_check(a, b, rule, decide, bounds)
 
 
 def similar_check(a: str, b: str) -> Check:
@@ -378,21 +438,23 @@ def similar_check(a: str, b: str) -> Check:
         return False if diff.low > margin or diff.high < -margin else None
 
     rule = (
-        f"holds when the 95% interval of mean test return {a} − {b} lies inside ± "
+        f"reproduced when the 95% interval of mean test return {a} − {b} lies inside ± "
         f"{EQUIVALENCE:.0%} of the agents' gain over a random policy at their training contexts; "
-        "does not hold when it lies outside that margin; undecided otherwise."
+        "not reproduced when it lies outside that margin; undecided otherwise."
     )
     bounds = f"the margin ± {{margin:.4g}} = {EQUIVALENCE:.0%} of the gain {{gain:.4g}}"
     return _difference_check(a, b, rule, decide, bounds)
 
 
-def _zone(drop: Interval, gain: float) -> str | None:
-    """harmless, moderate or brittle where the drop's interval lies in one zone, else None."""
-    if drop.high < HARMLESS * gain:
+def _zone(drop: Interval, gain: float, scale: float = 1.0) -> str | None:
+    """harmless, moderate or brittle where the drop's interval lies in one zone, else None (the
+    zones' bounds times ``scale``)."""
+    harmless, brittle = scale * HARMLESS * gain, scale * BRITTLE * gain
+    if drop.high < harmless:
         return "harmless"
-    if drop.low > BRITTLE * gain:
+    if drop.low > brittle:
         return "brittle"
-    if drop.low > HARMLESS * gain and drop.high < BRITTLE * gain:
+    if drop.low > harmless and drop.high < brittle:
         return "moderate"
     return None
 
@@ -410,14 +472,14 @@ def sensitivity_check(harmless: tuple[str, ...] = (), brittle: tuple[str, ...] =
     )
     if harmless or brittle:
         rule = zones + (
-            f"holds when {', '.join(harmless)} are harmless and {', '.join(brittle)} brittle; does "
-            f"not hold when one of them is shown otherwise (a harmless one's drop above "
-            f"{HARMLESS:.0%}, a brittle one's below {BRITTLE:.0%}); undecided otherwise."
+            f"reproduced when {', '.join(harmless)} are harmless and {', '.join(brittle)} "
+            f"brittle; not reproduced when one of them is shown otherwise (a harmless one's drop "
+            f"above {HARMLESS:.0%}, a brittle one's below {BRITTLE:.0%}); undecided otherwise."
         )
     else:
         rule = zones + (
-            f"holds when some feature is harmless and some brittle; does not hold when every "
-            f"feature's drop lies above {HARMLESS:.0%} (none harmless) or every one below "
+            f"reproduced when some feature is harmless and some brittle; not reproduced when "
+            f"every feature's drop lies above {HARMLESS:.0%} (none harmless) or every one below "
             f"{BRITTLE:.0%} (none brittle); undecided otherwise."
         )
 
@@ -442,8 +504,21 @@ def sensitivity_check(harmless: tuple[str, ...] = (), brittle: tuple[str, ...] =
                 None, f"drop per feature (95% CI over seeds): {named}; no gain to scale by"
             )
         zone = {f: _zone(d, gain) for f, d in drops.items()}
-        not_harmless = {f for f, d in drops.items() if d.low > HARMLESS * gain}
-        not_brittle = {f for f, d in drops.items() if d.high < BRITTLE * gain}
+        zones_found = ", ".join(
+            f"{f} {d}" + (f" {zone[f]}" if zone[f] else "") for f, d in drops.items()
+        )
+        return _over_margins(
+            lambda scale: judge(drops, gain, scale),
+            f"drop from the default context to the worst magnitude per feature (95% CI over "
+            f"seeds): {zones_found}; harmless below {HARMLESS * gain:.4g}, brittle above "
+            f"{BRITTLE * gain:.4g} ({HARMLESS:.0%} and {BRITTLE:.0%} of the gain {gain:.4g})",
+        )
+
+    def judge(drops: dict[str, Interval], gain: float, scale: float) -> bool | None:
+        """The rule's verdict with the zones' bounds times ``scale``."""
+        zone = {f: _zone(d, gain, scale) for f, d in drops.items()}
+        not_harmless = {f for f, d in drops.items() if d.low > scale * HARMLESS * gain}
+        not_brittle = {f for f, d in drops.items() if d.high < scale * BRITTLE * gain}
 
         def named(feature: str, wanted: str, ruled_out: set[str]) -> bool | None:
             """In the wanted zone: True; its interval rules that out: False; else undecided."""
@@ -452,27 +527,17 @@ def sensitivity_check(harmless: tuple[str, ...] = (), brittle: tuple[str, ...] =
             return False if feature in ruled_out else None
 
         if harmless or brittle:
-            holds = _all(
+            return _all(
                 [named(f, "harmless", not_harmless) for f in harmless]
                 + [named(f, "brittle", not_brittle) for f in brittle]
             )
-        else:
-            found = set(zone.values())
-            if {"harmless", "brittle"} <= found:
-                holds = True
-            elif not_harmless == set(drops) or not_brittle == set(drops):
-                holds = False
-            else:
-                holds = None
-        named = ", ".join(f"{f} {d}" + (f" {zone[f]}" if zone[f] else "") for f, d in drops.items())
-        return Verdict(
-            holds,
-            f"drop from the default context to the worst magnitude per feature (95% CI over "
-            f"seeds): {named}; harmless below {HARMLESS * gain:.4g}, brittle above "
-            f"{BRITTLE * gain:.4g} ({HARMLESS:.0%} and {BRITTLE:.0%} of the gain {gain:.4g})",
-        )
+        if {"harmless", "brittle"} <= set(zone.values()):
+            return True
+        if not_harmless == set(drops) or not_brittle == set(drops):
+            return False
+        return None
 
-    return Check(rule, decide)
+    return Check(f"{rule} {MARGIN_RULE}", decide)
 
 
 def _seed_interval(values: np.ndarray, spec) -> Interval:
@@ -499,9 +564,10 @@ def kirk_check(combinatorial: bool = True, concat_extrapolates: bool = False) ->
     if concat_extrapolates:
         parts.append("concat − hidden on the extrapolation contexts (one or both features)")
     rule = (
-        "holds when the 95% intervals (over seeds, each seed's agents with all their contexts) of "
+        "reproduced when the 95% intervals (over seeds, each seed's agents with all their "
+        "contexts) of "
         + "; of ".join(parts)
-        + " all lie above 0; does not hold when one lies below 0; undecided otherwise."
+        + " all lie above 0; not reproduced when one lies below 0; undecided otherwise."
     )
 
     def decide(runs: Mapping[str, RunDir], gain: float) -> Verdict:
@@ -549,7 +615,9 @@ def kirk_check(combinatorial: bool = True, concat_extrapolates: bool = False) ->
             )
             decisions.append(_decide(found))
             text.append(f"concat − hidden on extrapolation contexts = {found}")
-        return Verdict(_all(decisions), "; ".join(text) + " (95% CI over seeds; above 0 holds)")
+        return Verdict(
+            _all(decisions), "; ".join(text) + " (95% CI over seeds; above 0 reproduces)"
+        )
 
     return Check(rule, decide)
 
@@ -568,8 +636,8 @@ def _tabular(runs: Mapping[str, RunDir], gain: float) -> Verdict:
 
 
 tabular_check = Check(
-    "holds when the exact optimality gap of the best deterministic context-oblivious policy on the "
-    "paper's 3-state cMDP is above 0 (solved exactly: no sampling, no interval).",
+    "reproduced when the exact optimality gap of the best deterministic context-oblivious policy "
+    "on the paper's 3-state cMDP is above 0 (solved exactly: no sampling, no interval).",
     _tabular,
     gated=False,
 )

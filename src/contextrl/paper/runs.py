@@ -144,7 +144,7 @@ def run_figure(
     runs = finished_runs(figure, root, scale)
     if runs is None:
         raise RuntimeError(f"{name}: some chunks failed; rerun the same command to retry them")
-    verdict = figure.check(runs)
+    verdict = figure.verdict(runs)
     return verdict, write_text(folder / "paper.html", _figure_report(figure, scale, runs, verdict))
 
 
