@@ -37,8 +37,8 @@ system-deps:
 # CLI's trained run) are built once. (pytest-xdist 3.8's loadgroup does not group tests under pytest 9.)
 # Three tiers: `test` before every commit (every module and family; 15 minutes on 2 cores from a fresh
 # clone), `test-quick` after every edit (no learning, no large compiles; 90 s), `test-slow` for what
-# cannot be made cheap (whole-episode MJX statistics, the large Brax models, PB2 on Ray, the families'
-# own learning checks); CI runs `test` and `test-slow`.
+# cannot be made cheap (the other MJX and Brax parity programs, the reaching tasks' checker, the
+# families' own learning checks, PB2 on Ray); CI runs `test` and `test-slow`.
 PYTEST := $(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
 
 test: system-deps install
