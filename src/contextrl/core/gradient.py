@@ -45,7 +45,9 @@ def context_gradient(
     ``policy`` maps an observation to an action; it acts for ``horizon`` steps (at most the time limit)
     of one episode started by ``env.reset`` under ``key``, the steps drawing from keys split from it.
     """
-    return_of, values = _rollout(env, policy, context, key, horizon, features)
+    return_of, values = return_of_context(
+        env, policy, context, key=key, horizon=horizon, features=features
+    )
     gradient = jax.jit(jax.jacfwd(return_of))(values)
     return {name: float(gradient[name]) for name in values}
 
@@ -62,10 +64,6 @@ def return_of_context(
     """The return :func:`context_gradient` differentiates, as a pure function of a dict of the float
     features' values (the others stay at ``context``'s), and that dict at ``context``: to compile,
     differentiate or ``vmap`` over many values."""
-    return _rollout(env, policy, context, key, horizon, features)
-
-
-def _rollout(env, policy, context, key, horizon, features):
     context, names = _checked(env, policy, context, key, horizon, features)
     reset_key, steps_key = jax.random.split(key)
 

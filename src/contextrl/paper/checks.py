@@ -269,9 +269,8 @@ def gap_check(at_least: float, finished: bool = False, most_per_step: float | No
     it."""
     parts = "mean, median and IQM" + (" and the fraction of finished episodes" if finished else "")
     rule = (
-        f"reproduced when the 95% intervals of the specialists' minus the general agent's mean, "
-        "median "
-        f"and IQM test return all lie above {at_least:g}"
+        "reproduced when the 95% intervals of the specialists' minus the general agent's mean, "
+        f"median and IQM test return all lie above {at_least:g}"
         + (
             " and that of the fraction of finished episodes (cells at the best return) above 0"
             if finished
