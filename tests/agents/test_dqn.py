@@ -8,6 +8,7 @@ import pytest
 
 import contextrl as crl
 from contextrl.agents import ConfigError, dqn
+from contextrl.agents.common import agent_inputs
 from contextrl.agents.replay import Replay
 from tests.helpers import learning
 
@@ -158,7 +159,9 @@ def test_continuous_actions_are_refused():
         dqn.make_train(dqn.DQNConfig(), env, env.default_context())
 
 
-def test_paper_config():
+def test_paper_config_follows_the_authors_files():
+    """Values as CARL's experiments/benchmarking/configs state them (base.yaml, algorithm/c51.yaml,
+    the environment's file) and its C51 network (three hidden layers, double Q-learning)."""
     config = dqn.paper_config("Acrobot")
     assert (config.distributional, config.n_step, config.v_min, config.v_max) == (
         True,
@@ -167,8 +170,39 @@ def test_paper_config():
         0.0,
     )
     assert config.exploration == "boltzmann" and config.temperature == 0.1
+    assert config.hidden_sizes == (256, 256, 256) and config.double
+    assert dqn.paper_config("MountainCar").hidden_sizes == (32, 32, 32)
+    frames = {name: setting.frames for name, setting in dqn.PAPER_C51.items()}
+    assert frames == {
+        "CartPole": 100_000,
+        "Acrobot": 150_000,
+        "MountainCar": 300_000,
+        "LunarLander": 200_000,
+    }
     with pytest.raises(ConfigError, match="no paper C51 setting"):
         dqn.paper_config("Pong")
+
+
+@pytest.mark.parametrize(("double", "loss"), [(False, (1.0 - 10.0) ** 2), (True, (1.0 - 5.0) ** 2)])
+def test_double_q_learning_values_the_online_choice_by_the_target(cartpole, double, loss):
+    """Constant Q-values (zero weights): online (1, 0), target (5, 10); reward 0, discount 1. The
+    target is the target network's best value, 10, or, double, its value of the online choice, 5."""
+    config = dqn.DQNConfig(hidden_sizes=(4,), double=double)
+    context = cartpole.default_context()
+    nets = dqn._networks(config, *agent_inputs(config, cartpole, context, "DQN"))
+    init = nets.q.init(jax.random.key(0))
+
+    def constant(values):
+        zero = jax.tree_util.tree_map(jnp.zeros_like, init)
+        return {**zero, "out": {**zero["out"], "bias": jnp.asarray(values, jnp.float32)}}
+
+    obs = jnp.ones((1, 4))
+    batch = {
+        "obs": obs, "next_obs": obs, "context": jnp.zeros((1, 0)), "next_context": jnp.zeros((1, 0)),
+        "action": jnp.array([0]), "reward": jnp.zeros(1), "discount": jnp.ones(1),
+    }  # fmt: skip
+    got = dqn.td_loss(config, nets, constant([1.0, 0.0]), constant([5.0, 10.0]), batch)
+    assert float(got) == pytest.approx(loss)
 
 
 @pytest.mark.parametrize("distributional", [False, True])

@@ -97,10 +97,64 @@ def test_discrete_actions_are_refused():
         sac.make_train(sac.SACConfig(), env, env.default_context())
 
 
-def test_paper_config():
-    config = sac.paper_config("Pendulum")
-    assert (config.n_step, config.gamma, config.alpha, config.policy_frequency) == (5, 0.9, 0.2, 4)
-    assert not config.autotune
+def test_paper_config_follows_the_authors_files():
+    """Values as CARL's experiments/benchmarking/configs state them: base.yaml for Pendulum,
+    dmc/base.yaml over it for dm_control, box2d/bipedalwalker.yaml for BipedalWalker."""
+    pendulum = sac.paper_config("Pendulum")
+    assert (pendulum.n_step, pendulum.gamma, pendulum.alpha, pendulum.policy_frequency) == (
+        5,
+        0.9,
+        0.2,
+        4,
+    )
+    assert (pendulum.learning_starts, pendulum.policy_learning_starts) == (5000, 7500)
+    assert not pendulum.autotune and pendulum.layer_norm
+    walker = sac.paper_config("DmcWalker")
+    assert (walker.gamma, walker.tau, walker.policy_frequency, walker.q_lr, walker.policy_lr) == (
+        0.99,
+        0.005,
+        2,
+        1e-4,
+        1e-4,
+    )
+    assert (walker.batch_size, walker.alpha, walker.hidden_sizes, walker.buffer_size) == (
+        256,
+        0.1,
+        (1024, 1024),
+        1_000_000,
+    )
+    assert sac.PAPER_SAC["DmcWalker"].frames == 1_000_000
+    assert sac.PAPER_SAC["DmcWalker"].files[-1] == "environments/dmc/walker.yaml"
+    biped = sac.paper_config("BipedalWalker")
+    assert (biped.gamma, biped.tau, biped.policy_frequency, biped.q_lr) == (0.98, 0.02, 64, 7.3e-4)
+    assert sac.PAPER_SAC["BipedalWalker"].frames == 500_000
+
+
+def test_the_actor_waits_for_policy_learning_starts(pendulum):
+    """Before ``policy_learning_starts`` only the critics learn, compiled and on the host: the
+    first row (steps 200–300) has no actor loss and the temperature at its start, the second
+    has both moving. The first layer is normalised (``layer_norm``) on both paths."""
+    config = sac.SACConfig(
+        total_timesteps=400,
+        num_envs=2,
+        hidden_sizes=(8,),
+        learning_starts=200,
+        policy_learning_starts=301,
+        log_every=100,
+        batch_size=16,
+        layer_norm=True,
+    )
+    context = pendulum.default_context()
+    compiled = jax.jit(sac.make_train(config, pendulum, context))(jax.random.key(0)).metrics
+    host = sac.train_gymnasium(config, "Pendulum", context, jax.random.key(0), seed=1).metrics
+    for metrics in (compiled, host):
+        assert np.asarray(metrics["step"]).tolist() == [300, 400]
+        actor_loss, alpha = np.asarray(metrics["actor_loss"]), np.asarray(metrics["alpha"])
+        assert np.isnan(actor_loss[0]) and np.isfinite(actor_loss[1]), actor_loss
+        assert abs(alpha[0] - 0.2) < 1e-6 and abs(alpha[1] - 0.2) > 1e-4, alpha
+        assert np.all(np.isfinite(np.asarray(metrics["critic_loss"])))
+    params = sac.init_params(config, pendulum, context, jax.random.key(1))
+    assert params["actor"]["norm"]["scale"].shape == (8,)
 
 
 def test_host_training_is_reproducible_and_follows_the_schedule(pendulum):

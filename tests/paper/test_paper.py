@@ -14,12 +14,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from contextrl.analysis.intervals import Interval
 from contextrl.cli import main
 from contextrl.experiments.plan import trial_columns
 from contextrl.experiments.runner import run_experiment
-from contextrl.experiments.runs import RunDir, write_parquet
+from contextrl.experiments.runs import RunDir, agent_settings, write_parquet
 from contextrl.experiments.spec import parse_spec
 from contextrl.paper import (
     FIGURES,
@@ -51,7 +52,7 @@ from contextrl.paper.checks import (
 from contextrl.paper.plans import planned, training_steps
 from contextrl.paper.runs import (
     _add_catalogue_seeds,
-    machines,
+    _agent_settings,
     plan_text,
     seconds_per_step,
     wall_seconds,
@@ -225,7 +226,7 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
     (partial / "optgap_cartpole" / "results" / "chunk-0001.parquet").unlink()
     section = results_page(partial.parent).split("## optgap_cartpole\n")[1].split("\n## ")[0]
     assert (
-        f"- **At full budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept"
+        f"- **At the authors' budget**: under way, 1 of {len(plan.chunks)} chunks finished and kept"
         in section
     )
     assert "at the pace of its finished chunks" in section  # its own budget's pace, not another's
@@ -356,17 +357,23 @@ def _write_chunk(run: RunDir, plan, chunk: int, value: float, random: float) -> 
 
 
 def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
-    """DmcWalker's SAC with the paper's settings and with CleanRL's (batches twice as large) cost
-    several times apart per step: the paper run's estimate takes the kept run of its own settings,
-    and another settings' run only where none of its own has finished. A run under way counts the
-    steps of its finished chunks, which its time was spent on."""
+    """DmcWalker's SAC with the authors' settings and with CleanRL's cost several times apart per
+    step: the paper run's estimate takes the kept run of its own settings, and another settings' run
+    only where none of its own has finished. A run under way counts the steps of its finished
+    chunks, which its time was spent on. (The run of the authors' settings is the kept CleanRL run
+    with the authors' agent options written into its spec: a stand-in whose timings differ.)"""
     kept, names = ROOT / PAPER_RUNS, ("visibility_dmcwalker", "visibility_dmcwalker_cleanrl")
+    source = kept / f"{names[1]}-small" / names[1]
     runs = []
     for figure in names:
         folder = tmp_path / f"{figure}-small" / figure
-        shutil.copytree(kept / f"{figure}-small" / figure, folder)
+        shutil.copytree(source, folder)
         runs.append(RunDir(folder))
     own, other = runs
+    data = yaml.safe_load((source / "spec.yaml").read_text(encoding="utf-8"))
+    data["agent_options"] = spec_data(FIGURES[names[0]], names[0], "small")["agent_options"]
+    (own.path / "spec.yaml").write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    own.update_manifest(wall_seconds=2 * wall_seconds(other))
     paper = [parse_spec(spec_data(FIGURES[names[0]], names[0], "paper"))]
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(own) / training_steps(own.spec())
@@ -378,13 +385,17 @@ def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
     shutil.rmtree(own.path)
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(other) / training_steps(other.spec())
-    # PB2 on Pendulum trains SAC members one to a process: not at the rate of vmapped SAC agents
-    for figure in ("visibility_pendulum-paper", "pb2_pendulum-small"):
-        shutil.copytree(kept / figure, tmp_path / figure, ignore=shutil.ignore_patterns("ray"))
-    pb2 = FIGURES["pb2_pendulum"]
-    specs = [parse_spec(spec_data(pb2, part, "paper")) for part in pb2.files()]
-    _, machine = seconds_per_step(specs, "paper", tmp_path)
-    assert machine == machines([RunDir(tmp_path / "pb2_pendulum-small" / p) for p in pb2.files()])
+
+
+def test_pb2_members_count_as_an_agent_of_their_own():
+    """A PB2 population's members train one to a process, not vmapped: their rate is not that of
+    the same agent in another protocol."""
+    pb2 = parse_spec(spec_data(FIGURES["pb2_acrobot"], "hidden", "paper"))
+    baseline = parse_spec(
+        spec_data(FIGURES["baseline_acrobot_visibility"], "baseline_acrobot_visibility", "paper")
+    )
+    assert (pb2.env, pb2.agent) == ("Acrobot", "dqn") and baseline.env == "Acrobot"
+    assert _agent_settings(pb2)[1] == "dqn in PB2" and _agent_settings(baseline)[1] == "c51"
 
 
 def _differences(evidence: str) -> dict[str, tuple[float, float, float]]:
@@ -403,7 +414,13 @@ def test_every_spec_states_the_decision_rule_its_check_applies():
         if figure.check.gated:
             assert figure.rule.endswith(GATE)
         assert figure.header("Budget"), figure.name
-    assert [f.name for f in FIGURES.values() if f.stated_budget] == ["kirk_cartpole"]
+    stated = {f.name for f in FIGURES.values() if f.stated_budget}
+    chosen = {
+        "tabular_cmdp",
+        "platformer_conditioning",
+        *(f for f in FIGURES if f.startswith("pb2")),
+    }
+    assert stated == set(FIGURES) - chosen, stated ^ (set(FIGURES) - chosen)
 
 
 def test_sensitivity_zones_and_equivalence_margins_are_fixed_fractions_of_the_gain():
@@ -413,6 +430,19 @@ def test_sensitivity_zones_and_equivalence_margins_are_fixed_fractions_of_the_ga
     assert _zone(Interval(150.0, 101.0, 300.0), gain) == "brittle"
     assert _zone(Interval(20.0, 10.0, 30.0), gain) is None  # straddles a boundary: undecided
     assert (HARMLESS, BRITTLE, EQUIVALENCE, MIN_SEEDS) == (0.10, 0.50, 0.10, 5)
+
+
+def test_every_kept_run_was_trained_with_the_settings_its_spec_gives_today():
+    """A kept run records the agent settings it trained with; a changed default (an agent's
+    ``paper_config``, a field added) that would train its spec differently today fails here, so the
+    page never shows a run under settings it was not trained with: rerun it or remove it."""
+    kept = sorted((ROOT / PAPER_RUNS).glob("*/*/spec.yaml"))
+    assert kept
+    for spec_file in kept:
+        run = RunDir(spec_file.parent)
+        recorded = run.manifest().get("agent_settings")
+        assert recorded is not None, f"{run.path}: no agent settings recorded"
+        assert recorded == agent_settings(run.spec()), f"{run.path}: trained with other settings"
 
 
 def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
@@ -427,9 +457,10 @@ def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
     assert CAUSES in page and MARGIN_RULE.split(": ")[1] in page
     tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
     assert "**Solved exactly** (exact solution; " in tabular and "): **reproduced**." in tabular
-    for name in ("visibility_pendulum", "ecdf_pendulum", "kirk_pendulum_gravity_length"):
+    for name in ("baseline_cartpole_default", "platformer_conditioning"):
         section = page.split(f"## {name}\n")[1].split("\n## ")[0]
-        assert "- **At full budget** (" in section and "over seeds" in section
+        full = "the authors' budget" if FIGURES[name].stated_budget else "full budget"
+        assert f"- **At {full}** (" in section and "over seeds" in section
 
 
 def test_the_command_lists_figures_and_refuses_an_unknown_one(capsys, tmp_path):
@@ -554,7 +585,7 @@ def _not_reproduced(name: str) -> PaperFigure:
     ("name", "cause"),
     [
         ("pb2_pendulum", "a substituted agent (the settings say which, and why)"),
-        ("visibility_pendulum", "the budget, chosen here (the budget line says why)"),
+        ("platformer_conditioning", "the budget, chosen here (the budget line says why)"),
         (
             "kirk_cartpole",
             "a budget below the authors' ({small:,} of their {paper:,} training steps)",
@@ -566,7 +597,8 @@ def test_a_claim_not_reproduced_names_its_budget_settings_and_most_likely_cause(
 ):
     """The first cause the runs show, by the rule the page states: a substituted agent where the
     settings say so (PB2 on Pendulum runs SAC for DDPG); else the budget, below the authors' where
-    the spec records theirs (Kirk's CartPole: 100,000 steps) and else chosen here."""
+    the spec records theirs (Kirk's CartPole: 100,000 steps) and else chosen here (the platformer's
+    PPO, which the authors' configs do not train)."""
     figure = _not_reproduced(name)
     runs = {
         part: RunDir.create(parse_spec(spec_data(figure, part, "small")), out=tmp_path / part)

@@ -90,7 +90,7 @@ def agent_inputs(
     a JAX environment (refused when it shows its own context) or, where ``host``, a host one."""
     config.validate()
     if not (host and isinstance(env, HostEnv)):
-        check_env(env, agent)
+        check_compiled_env(env, agent)
     context = context_input(config.variant, env.context_space, train_contexts)
     return env.base_observation_space, env.action_space, context
 
@@ -109,8 +109,9 @@ class Policy:
         return self.act(params, obs, self.context.vector(self.space, ctx), key)
 
 
-def check_env(env: Any, agent: str) -> None:
-    """A contextrl JAX environment whose observation is not already extended by the env itself."""
+def check_compiled_env(env: Any, agent: str) -> None:
+    """Refuse all but a contextrl JAX environment (what a compiled training loop steps) whose
+    observation the environment itself does not already extend with its context."""
     if not isinstance(env, Env):
         if isinstance(env, HostEnv):
             host_path = (

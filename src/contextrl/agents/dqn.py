@@ -1,7 +1,7 @@
 """DQN with n-step returns, and C51 (distributional) as an option; the whole run one JAX function.
 
     config = dqn.DQNConfig(distributional=True)          # C51
-    config = dqn.paper_config("CartPole")                # the paper's C51 hyper-parameters
+    config = dqn.paper_config("CartPole")                # the authors' C51 settings
     train = dqn.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
 
@@ -23,6 +23,7 @@ import numpy as np
 import optax
 
 from contextrl.agents import offpolicy
+from contextrl.agents.authors import AuthorsSetting
 from contextrl.agents.common import Policy, TrainResult, agent_inputs
 from contextrl.agents.host import HostLearner, train_on_host
 from contextrl.agents.networks import ConditionedMLP, ContextInput
@@ -61,6 +62,8 @@ class DQNConfig(offpolicy.OffPolicyConfig):
     """Gradient steps between target updates."""
     max_grad_norm: float = 10.0
     """Global gradient-norm clip."""
+    double: bool = False
+    """Double Q-learning: the next action chosen by the online network, valued by the target one."""
     exploration: str = "epsilon"
     """"epsilon" (ε-greedy, linearly decayed) or "boltzmann" (softmax of Q / temperature)."""
     start_epsilon: float = 1.0
@@ -115,37 +118,62 @@ class DQNConfig(offpolicy.OffPolicyConfig):
         return self.train_frequency
 
 
-# The paper's C51 settings (appendix table "Hyperparameters for algorithm and environment
-# combinations"): n_step 5, gamma 0.99, batch 128, lr 1e-3, soft target updates with tau 0.001,
-# 5000 warm-up frames, replay 100,000, Boltzmann exploration with temperature 0.1, 51 atoms.
+# The authors' C51 settings: base.yaml (n-step 5, batch 128, learning rate 1e-3, soft target updates
+# with tau 0.001 after every gradient step, 5,000 warm-up frames, replay 100,000, width 256),
+# algorithm/c51.yaml (Boltzmann exploration with temperature 0.1, gamma 0.99, 51 atoms) and each
+# environment's file (the return support; MountainCar's width 32). The Q-network of CARL's
+# experiments/context_gating/networks/c51.py has three hidden layers of that width. The appendix
+# table lists the same values (the depth and the budgets aside).
+_C51_BASE = dict(
+    distributional=True,
+    num_envs=1,
+    n_step=5,
+    gamma=0.99,
+    batch_size=128,
+    learning_rate=1e-3,
+    tau=0.001,
+    target_update_interval=1,
+    learning_starts=5000,
+    buffer_size=100_000,
+    exploration="boltzmann",
+    temperature=0.1,
+    num_atoms=51,
+    hidden_sizes=(256, 256, 256),
+    double=True,  # coax's DoubleQLearning
+)
+_C51_FILES = ("base.yaml", "algorithm/c51.yaml")
 PAPER_C51 = {
-    "CartPole": dict(hidden_sizes=(256, 256), v_min=0.0, v_max=110.0),
-    "Acrobot": dict(hidden_sizes=(256, 256), v_min=-50.0, v_max=0.0),
-    "MountainCar": dict(hidden_sizes=(32, 32), v_min=-100.0, v_max=100.0),
-    "LunarLander": dict(hidden_sizes=(256, 256), v_min=-100.0, v_max=100.0),
+    "CartPole": AuthorsSetting(
+        (*_C51_FILES, "environments/classic_control/cartpole.yaml"),
+        100_000,
+        {**_C51_BASE, "v_min": 0.0, "v_max": 110.0},
+    ),
+    "Acrobot": AuthorsSetting(
+        (*_C51_FILES, "environments/classic_control/acrobot.yaml"),
+        150_000,
+        {**_C51_BASE, "v_min": -50.0, "v_max": 0.0},
+    ),
+    "MountainCar": AuthorsSetting(
+        (*_C51_FILES, "environments/classic_control/mountaincar.yaml"),
+        300_000,
+        {**_C51_BASE, "v_min": -100.0, "v_max": 100.0, "hidden_sizes": (32, 32, 32)},
+    ),
+    "LunarLander": AuthorsSetting(
+        (*_C51_FILES, "environments/box2d/lunarlander.yaml"),
+        200_000,
+        {**_C51_BASE, "v_min": -100.0, "v_max": 100.0},
+    ),
 }
 
 
 def paper_config(env_name: str, **overrides: Any) -> DQNConfig:
-    """The paper's C51 configuration for CartPole, Acrobot, MountainCar or LunarLander."""
+    """The authors' C51 settings (:data:`PAPER_C51`) for CartPole, Acrobot, MountainCar or
+    LunarLander. What coax's C51 does differently: its Q-function takes the action as an input (one
+    output distribution per state–action pair) where this one outputs every action's, and its
+    gradients are not clipped (here: ``max_grad_norm`` 10)."""
     if env_name not in PAPER_C51:
         raise ConfigError(f"no paper C51 setting for {env_name!r}; known: {sorted(PAPER_C51)}")
-    base = dict(
-        distributional=True,
-        num_envs=1,
-        n_step=5,
-        gamma=0.99,
-        batch_size=128,
-        learning_rate=1e-3,
-        tau=0.001,
-        target_update_interval=1,
-        learning_starts=5000,
-        buffer_size=100_000,
-        exploration="boltzmann",
-        temperature=0.1,
-        num_atoms=51,
-    )
-    return DQNConfig(**{**base, **PAPER_C51[env_name], **overrides})
+    return DQNConfig(**{**PAPER_C51[env_name].options, **overrides})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -205,6 +233,36 @@ def _explore(config: DQNConfig, nets: _Networks, q, key, epsilon):
     return jnp.where(explore, random_action, jnp.argmax(q, axis=-1))
 
 
+def td_loss(config: DQNConfig, nets: _Networks, params, target_params, batch) -> jax.Array:
+    """The TD loss of a batch: squared error to the n-step target (DQN), or the cross-entropy to
+    the projected target distribution (C51)."""
+    q, logits = _q_values(nets, params, batch["obs"], batch["context"])
+    action = batch["action"]
+    next_q, next_logits = _q_values(nets, target_params, batch["next_obs"], batch["next_context"])
+    chooser = (
+        _q_values(nets, params, batch["next_obs"], batch["next_context"])[0]
+        if config.double
+        else next_q
+    )
+    next_action = jnp.argmax(chooser, axis=-1)
+    if nets.atoms is None:
+        next_value = jnp.take_along_axis(next_q, next_action[:, None], axis=-1).squeeze(-1)
+        target = batch["reward"] + batch["discount"] * next_value
+        chosen = jnp.take_along_axis(q, action[:, None], axis=-1).squeeze(-1)
+        return jnp.mean((chosen - jax.lax.stop_gradient(target)) ** 2)
+    next_probs = jax.nn.softmax(
+        jnp.take_along_axis(next_logits, next_action[:, None, None], axis=1).squeeze(1)
+    )
+    # Project the shifted support r + γ^n z back onto the atoms (linear interpolation).
+    shifted = batch["reward"][:, None] + batch["discount"][:, None] * nets.atoms[None, :]
+    spacing = (config.v_max - config.v_min) / (config.num_atoms - 1)
+    position = (jnp.clip(shifted, config.v_min, config.v_max) - config.v_min) / spacing
+    weight = jnp.clip(1.0 - jnp.abs(position[:, :, None] - jnp.arange(config.num_atoms)), 0, 1)
+    target = jax.lax.stop_gradient(jnp.einsum("bj,bji->bi", next_probs, weight))
+    chosen = jnp.take_along_axis(logits, action[:, None, None], axis=1).squeeze(1)
+    return -jnp.mean(jnp.sum(target * jax.nn.log_softmax(chosen), axis=-1))
+
+
 def _learner(config: DQNConfig, nets: _Networks):
     """The optimiser, ``act(params, obs, context, key, epsilon)``, ``learn(params, target_params,
     opt_state, replay, key, update_index)`` (one gradient step, then the target update) and the
@@ -214,36 +272,15 @@ def _learner(config: DQNConfig, nets: _Networks):
     )
     decay_steps = max(1, int(config.exploration_fraction * config.num_updates))
 
-    def loss_fn(params, target_params, batch):
-        q, logits = _q_values(nets, params, batch["obs"], batch["context"])
-        action = batch["action"]
-        next_q, next_logits = _q_values(
-            nets, target_params, batch["next_obs"], batch["next_context"]
-        )
-        if nets.atoms is None:
-            target = batch["reward"] + batch["discount"] * next_q.max(axis=-1)
-            chosen = jnp.take_along_axis(q, action[:, None], axis=-1).squeeze(-1)
-            return jnp.mean((chosen - jax.lax.stop_gradient(target)) ** 2)
-        next_action = jnp.argmax(next_q, axis=-1)
-        next_probs = jax.nn.softmax(
-            jnp.take_along_axis(next_logits, next_action[:, None, None], axis=1).squeeze(1)
-        )
-        # Project the shifted support r + γ^n z back onto the atoms (linear interpolation).
-        shifted = batch["reward"][:, None] + batch["discount"][:, None] * nets.atoms[None, :]
-        spacing = (config.v_max - config.v_min) / (config.num_atoms - 1)
-        position = (jnp.clip(shifted, config.v_min, config.v_max) - config.v_min) / spacing
-        weight = jnp.clip(1.0 - jnp.abs(position[:, :, None] - jnp.arange(config.num_atoms)), 0, 1)
-        target = jax.lax.stop_gradient(jnp.einsum("bj,bji->bi", next_probs, weight))
-        chosen = jnp.take_along_axis(logits, action[:, None, None], axis=1).squeeze(1)
-        return -jnp.mean(jnp.sum(target * jax.nn.log_softmax(chosen), axis=-1))
-
     def act(params, obs, context_vector, key, epsilon):
         q, _ = _q_values(nets, params, obs, context_vector)
         return _explore(config, nets, q, key, epsilon)
 
     def learn(params, target_params, opt_state, replay, key, update_index):
         batch = replay.sample(key, config.batch_size, config.n_step, config.gamma)
-        loss, grads = jax.value_and_grad(loss_fn)(params, target_params, batch)
+        loss, grads = jax.value_and_grad(
+            lambda online: td_loss(config, nets, online, target_params, batch)
+        )(params)
         updates, opt_state = optimizer.update(grads, opt_state, params)
         params = optax.apply_updates(params, updates)
         refresh = (update_index + 1) % config.target_update_interval == 0

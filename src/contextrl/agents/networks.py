@@ -126,6 +126,9 @@ class ConditionedMLP:
     context: ContextInput = ContextInput()
     activation: str = "tanh"
     out_scale: float = 1.0
+    layer_norm: bool = False
+    """The first hidden layer normalised (LayerNorm, learned scale and offset), then tanh, whatever
+    ``activation`` the others use: the SAC networks of CARL's experiments."""
 
     def init(self, key) -> Params:
         sizes = list(self.hidden_sizes)
@@ -139,6 +142,8 @@ class ConditionedMLP:
             params[f"layer_{i}"] = dense_init(keys[i], n_in, width, math.sqrt(2.0))
             n_in = width
         params["out"] = dense_init(keys[len(sizes)], n_in, self.out_size, self.out_scale)
+        if self.layer_norm:
+            params["norm"] = {"scale": jnp.ones((sizes[0],)), "offset": jnp.zeros((sizes[0],))}
         if self.context.variant == "gated":
             # Zero weights and bias: the gate starts at exactly 1, i.e. as the hidden agent.
             params["gate"] = dense_init(keys[-1], self.context.size, sizes[0], 0.0)
@@ -149,10 +154,22 @@ class ConditionedMLP:
         if self.context.variant.startswith("concat"):
             x = jnp.concatenate([x, context_vector], axis=-1)
         for i in range(len(self.hidden_sizes)):
-            x = activation(dense(params[f"layer_{i}"], x))
+            x = dense(params[f"layer_{i}"], x)
+            x = (
+                jnp.tanh(layer_norm(params["norm"], x))
+                if i == 0 and self.layer_norm
+                else activation(x)
+            )
             if i == 0 and self.context.variant == "gated":
                 x = x * 2.0 * jax.nn.sigmoid(dense(params["gate"], context_vector))
         return dense(params["out"], x)
+
+
+def layer_norm(params: Params, x: jax.Array, eps: float = 1e-5) -> jax.Array:
+    """``x`` normalised over its last axis to zero mean and unit variance, then scaled and shifted."""
+    mean = x.mean(axis=-1, keepdims=True)
+    variance = jnp.square(x - mean).mean(axis=-1, keepdims=True)
+    return (x - mean) * jax.lax.rsqrt(variance + eps) * params["scale"] + params["offset"]
 
 
 def check_hidden_sizes(value: Sequence[int], activation: str) -> tuple[int, ...]:

@@ -80,7 +80,7 @@ class Agent:
         config.validate()
         return config
 
-    def check_env(self, env, host: bool = False) -> None:
+    def check_action_space(self, env, host: bool = False) -> None:
         """Refuse an environment whose action space this agent cannot act in."""
         if host and not self.runs_on_host:
             raise ConfigError(
@@ -192,7 +192,7 @@ register_agent(
         dqn.make_policy,
         defaults=_c51_defaults,
         actions=("discrete",),
-        doc="C51 (distributional DQN; the paper's settings where it has them)",
+        doc="C51 (distributional DQN; the authors' settings where their configs have them)",
         train_host=dqn.train_gymnasium,
         init_params=dqn.init_params,
     )
@@ -205,7 +205,7 @@ register_agent(
         sac.make_policy,
         defaults=_sac_defaults,
         actions=("continuous",),
-        doc="SAC (the paper's settings where it has them)",
+        doc="SAC (the authors' settings where their configs have them)",
         train_host=sac.train_gymnasium,
         init_params=sac.init_params,
     )

@@ -2,13 +2,14 @@
 entropy tuning); the whole run one JAX function.
 
     config = sac.SACConfig(variant="concat_varying")
-    config = sac.paper_config("Pendulum")               # the paper's SAC hyper-parameters
+    config = sac.paper_config("Pendulum")               # the authors' SAC settings
     train = sac.make_train(config, env, train_contexts)
     result = jax.jit(jax.vmap(train))(keys)
 
 ``train(key, contexts=None, params=None)`` as in :mod:`contextrl.agents.ppo`. After a warm-up of
 uniform random actions, each gradient step is ``policy_frequency`` rounds of (one vector step, one critic update)
-followed by one actor (and temperature) update; each logging period is one metrics row.
+followed by one actor (and temperature) update (none before ``policy_learning_starts`` steps); each
+logging period is one metrics row.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import numpy as np
 import optax
 
 from contextrl.agents import offpolicy
+from contextrl.agents.authors import AuthorsSetting
 from contextrl.agents.common import Policy, TrainResult, agent_inputs
 from contextrl.agents.host import HostLearner, train_on_host
 from contextrl.agents.networks import ConditionedMLP, ContextInput
@@ -58,6 +60,12 @@ class SACConfig(offpolicy.OffPolicyConfig):
     """Random-action transitions collected before learning (paper: warmup_num_frames)."""
     policy_frequency: int = 2
     """Critic updates (one vector step each) per actor update (paper: pi_update_freq)."""
+    policy_learning_starts: int = 0
+    """Environment steps before the first actor update; until then only the critics learn (paper:
+    pi_warmup_num_frames). Below ``learning_starts`` it changes nothing."""
+    layer_norm: bool = False
+    """The first hidden layer of actor and critics normalised (LayerNorm), then tanh: the networks
+    of CARL's experiments."""
     alpha: float = 0.2
     """Entropy temperature (the initial one when autotune is on)."""
     autotune: bool = True
@@ -69,6 +77,9 @@ class SACConfig(offpolicy.OffPolicyConfig):
         """Raise ConfigError for any value that cannot train."""
         super().validate()
         check_positive("policy_frequency", self.policy_frequency, integer=True)
+        check_positive(
+            "policy_learning_starts", self.policy_learning_starts, integer=True, allow_zero=True
+        )
         for name in ("policy_lr", "q_lr", "alpha"):
             check_positive(name, getattr(self, name))
         self.check_schedule()
@@ -78,29 +89,79 @@ class SACConfig(offpolicy.OffPolicyConfig):
         return self.policy_frequency
 
 
-# The paper's SAC environments (appendix table); all three share one setting.
-PAPER_SAC = {"Pendulum": {}, "DmcWalker": {}, "DmcQuadruped": {}}
+# The authors' SAC settings. base.yaml (with algorithm/sac.yaml): n-step 5, gamma 0.9, a fixed
+# entropy weight 0.2, batch 128, learning rate 1e-3 for actor and critics, critic targets with tau
+# 0.001, 5,000 warm-up frames, the actor from frame 7,500 and every 4th step, replay 100,000, width
+# 256 (two hidden layers, the first LayerNorm and tanh: experiments/context_gating/networks/sac.py).
+# dm_control (environments/dmc/base.yaml, which each domain's file includes) and BipedalWalker
+# override some of these. The appendix table gives DmcWalker and DmcQuadruped base.yaml's values,
+# not dmc/base.yaml's: the files are what trained the figures.
+_SAC_BASE = dict(
+    n_step=5,
+    gamma=0.9,
+    alpha=0.2,
+    autotune=False,
+    batch_size=128,
+    policy_lr=1e-3,
+    q_lr=1e-3,
+    tau=0.001,
+    learning_starts=5000,
+    policy_learning_starts=7500,
+    policy_frequency=4,
+    buffer_size=100_000,
+    hidden_sizes=(256, 256),
+    layer_norm=True,
+)
+_SAC_DMC = dict(
+    _SAC_BASE,
+    gamma=0.99,
+    tau=0.005,
+    policy_frequency=2,
+    policy_lr=1e-4,
+    q_lr=1e-4,
+    batch_size=256,
+    alpha=0.1,
+    hidden_sizes=(1024, 1024),
+    buffer_size=1_000_000,
+)
+_SAC_FILES = ("base.yaml", "algorithm/sac.yaml")
+PAPER_SAC = {
+    "Pendulum": AuthorsSetting(
+        (*_SAC_FILES, "environments/classic_control/pendulum.yaml"), 100_000, _SAC_BASE
+    ),
+    **{
+        f"Dmc{domain.title()}": AuthorsSetting(
+            (*_SAC_FILES, "environments/dmc/base.yaml", f"environments/dmc/{domain}.yaml"),
+            1_000_000,
+            _SAC_DMC,
+        )
+        for domain in ("walker", "quadruped", "fish")
+    },
+    "BipedalWalker": AuthorsSetting(
+        (*_SAC_FILES, "environments/box2d/bipedalwalker.yaml"),
+        500_000,
+        dict(
+            _SAC_BASE,
+            gamma=0.98,
+            tau=0.02,
+            policy_frequency=64,
+            policy_lr=7.3e-4,
+            q_lr=7.3e-4,
+            batch_size=256,
+        ),
+    ),
+}
 
 
 def paper_config(env_name: str, **overrides: Any) -> SACConfig:
-    """The paper's SAC settings (appendix table) for Pendulum, DmcWalker or DmcQuadruped."""
+    """The authors' SAC settings (:data:`PAPER_SAC`) for Pendulum, BipedalWalker and the dm_control
+    domains. What coax's SAC does differently: each step updates one critic, chosen by a coin flip
+    (here both); its entropy term is coax's n-step entropy regulariser with weight ``alpha`` in
+    the critics' targets and the policy objective (here SAC's −α log π of a sampled action); and
+    its ``pi_targ_tau`` sets nothing, as its SAC keeps no actor target."""
     if env_name not in PAPER_SAC:
         raise ConfigError(f"no paper SAC setting for {env_name!r}; known: {sorted(PAPER_SAC)}")
-    base = dict(
-        n_step=5,
-        gamma=0.9,
-        alpha=0.2,
-        autotune=False,
-        batch_size=128,
-        policy_lr=1e-3,
-        q_lr=1e-3,
-        tau=0.001,
-        learning_starts=5000,
-        policy_frequency=4,
-        buffer_size=100_000,
-        hidden_sizes=(256, 256),
-    )
-    return SACConfig(**{**base, **PAPER_SAC[env_name], **overrides})
+    return SACConfig(**{**PAPER_SAC[env_name].options, **overrides})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,7 +193,12 @@ def _networks(
             f"SAC squashes actions into bounds; the action bounds are infinite: {action_space!r}"
         )
     obs_size = flat_observation_size("SAC", observation_space)
-    common = dict(hidden_sizes=config.hidden_sizes, context=context, activation=config.activation)
+    common = dict(
+        hidden_sizes=config.hidden_sizes,
+        context=context,
+        activation=config.activation,
+        layer_norm=config.layer_norm,
+    )
     action_size = action_space.shape[0]
     actor = ConditionedMLP(obs_size, 2 * action_size, out_scale=0.01, **common)
     critic = ConditionedMLP(obs_size + action_size, 1, out_scale=1.0, **common)
@@ -272,7 +338,15 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         params, target_critic, opt_states = learner
         batch = jax.tree_util.tree_map(lambda x: x[-1], batches)
         key, actor_key = jax.random.split(world.key)
-        params, opt_states, loss, alpha = actor_update(params, opt_states, batch, actor_key)
+        updated = actor_update(params, opt_states, batch, actor_key)
+        if config.policy_learning_starts > config.warmup_steps * config.num_envs:
+            ready = world.step >= config.policy_learning_starts
+            params, opt_states = jax.tree_util.tree_map(
+                lambda new, old: jnp.where(ready, new, old), updated[:2], (params, opt_states)
+            )
+            loss, alpha = jnp.where(ready, updated[2], jnp.nan), jnp.exp(params["log_alpha"])
+        else:
+            params, opt_states, loss, alpha = updated
         metrics = (critic_losses.mean(), loss, alpha)
         return (params, target_critic, opt_states), world._replace(key=key), metrics
 
@@ -280,7 +354,7 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         critic_losses, actor_losses, alphas = metrics
         return {
             "critic_loss": critic_losses.mean(),
-            "actor_loss": actor_losses.mean(),
+            "actor_loss": jnp.nanmean(actor_losses),  # NaN before the first actor update
             "alpha": alphas[-1],
         }
 
@@ -326,6 +400,7 @@ class _HostLearner(HostLearner):
         num_envs = config.num_envs
         self._nets, self._num_envs = nets, num_envs
         self._policy_frequency, self._round = config.policy_frequency, 0
+        self._policy_starts, self._steps = config.policy_learning_starts, 0
         action = np.zeros((num_envs, nets.action_size), np.float32)
         example = transition_example(collector.obs, collector.context, action)
 
@@ -398,11 +473,13 @@ class _HostLearner(HostLearner):
 
     def store(self, obs, context, step, warmup):
         self._replay = self._add(self._replay, transition(obs, context, self._action, step))
+        self._steps += self._num_envs
         if warmup:
             return
         self._round = (self._round + 1) % self._policy_frequency
+        with_actor = self._round == 0 and self._steps >= self._policy_starts
         self._state, self._next_action, losses = self._learn_and_act(
-            self._state, self._replay, (step.obs, step.context), self._round == 0
+            self._state, self._replay, (step.obs, step.context), with_actor
         )
         self._losses.append(losses)
 
@@ -411,10 +488,11 @@ class _HostLearner(HostLearner):
 
     def row_metrics(self):
         losses, self._losses = jax.device_get(self._losses), []
+        actor_losses = [x["actor_loss"] for x in losses if "actor_loss" in x]
         return {
             "critic_loss": float(np.mean([x["critic_loss"] for x in losses])),
-            "actor_loss": float(np.mean([x["actor_loss"] for x in losses if "actor_loss" in x])),
-            "alpha": float([x["alpha"] for x in losses if "alpha" in x][-1]),
+            "actor_loss": float(np.mean(actor_losses)) if actor_losses else float("nan"),
+            "alpha": float(np.exp(self._state["params"]["log_alpha"])),
         }
 
 

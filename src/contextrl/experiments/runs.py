@@ -3,7 +3,8 @@
 Layout of ``runs/<name>-<time>/``::
 
     spec.yaml            the resolved spec (a run is rebuilt from it on resume)
-    manifest.json        versions, seeds, plan size, start time, seconds spent (after each chunk)
+    manifest.json        versions, seeds, plan size, start time, seconds spent (after each chunk),
+                         the agent settings each variant trains with
     results/chunk-0003.parquet    evaluation rows of the trials of chunk 3
     curves/chunk-0003.parquet     their training curves
     training/chunk-0003.parquet   their return on their training contexts, and a random policy's
@@ -68,6 +69,20 @@ class Summary:
     seconds: float
 
 
+def agent_settings(spec: CommonSpec) -> dict[str, dict[str, Any]]:
+    """Every field of the agent config each variant trains with (the agent's defaults for the
+    environment merged with the spec's options), as JSON stores it: what a kept run was trained
+    with, to compare with what the same spec resolves to later."""
+    if not getattr(spec, "trains_agents", False):
+        return {}
+    configs = {variant: spec.agent_config(variant) for variant in spec.variants}
+    return json.loads(
+        json.dumps(
+            {v: dataclasses.asdict(c) for v, c in configs.items() if c is not None}, default=str
+        )
+    )
+
+
 class RunDir:
     """One run's folder; knows which chunks are finished and reads the results back."""
 
@@ -111,6 +126,7 @@ class RunDir:
             "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "versions": versions(),
             "platform": platform.platform(),
+            "agent_settings": agent_settings(spec),
         }
         write_text(path / "manifest.json", json.dumps(manifest, indent=2))
         return run

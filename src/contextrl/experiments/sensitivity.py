@@ -19,8 +19,8 @@ from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import (
     CommonSpec,
     SpecError,
-    _as_tuple,
     check_number,
+    names_tuple,
 )
 
 
@@ -85,7 +85,7 @@ class SensitivitySpec(CommonSpec):
             )
         else:
             try:
-                names = tuple(space.resolve(n) for n in _as_tuple(self.features))
+                names = tuple(space.resolve(n) for n in names_tuple(self.features))
             except ContextError as error:
                 raise SpecError(f"features: {error}") from None
             for name in names:

@@ -286,7 +286,7 @@ class CommonSpec:
         env = self.make_env()
         agent = self.agent_entry()
         try:
-            agent.check_env(env, host=self.host)
+            agent.check_action_space(env, host=self.host)
             for variant in self.variants:
                 agent.config(self.env, self.agent_options, variant)
         except ConfigError as error:
@@ -447,7 +447,8 @@ def check_number(field: str, value: Any, minimum: float | None = None) -> float:
     return float(value)
 
 
-def _as_tuple(value: Any) -> tuple:
+def names_tuple(value: Any) -> tuple:
+    """A spec field that names one thing or several (``features: g`` or ``[g, l]``) as a tuple."""
     return (value,) if isinstance(value, str) else tuple(value)
 
 

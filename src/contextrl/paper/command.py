@@ -80,7 +80,7 @@ def add_paper(subparsers) -> None:
         "--scale",
         choices=SCALES,
         default="small",
-        help="the paper's budget, the small one two CPU cores afford (default), or tiny (a smoke "
+        help="the full budget (the authors' where they state one), the small one two CPU cores afford (default), or tiny (a smoke "
         "run: no verdict from its intervals; a claim solved exactly is decided at every scale)",
     )
     parser.add_argument(

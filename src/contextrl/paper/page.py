@@ -13,7 +13,7 @@ from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec
 from contextrl.paper.catalogue import CAUSES, FIGURES, SCALES, PaperFigure, spec_data
 from contextrl.paper.checks import GATE, MIN_SEEDS, WORDS, Verdict
-from contextrl.paper.plans import planned, training_steps
+from contextrl.paper.plans import outlined, training_steps
 from contextrl.paper.runs import (
     estimate,
     finished_runs,
@@ -62,7 +62,8 @@ def results_page(root: str | Path) -> str:
         f"(here `{root}`: specs, manifests, results, curves and timings; `contextrl report RUN` "
         "draws a run's figures); a figure not run says so. The specs are in `examples/paper/` "
         "(shipped as `contextrl/paper/specs/`), each stating the paper's section, the claim, its decision "
-        "rule and where its settings differ from the paper's.",
+        "rule, where each setting comes from (the authors' experiment configs, the paper's text) and "
+        "where ours differ.",
         "",
         "**How claims are decided.** Each rule was written before the runs. *reproduced* / *not "
         "reproduced*: the 95% intervals decide as the rule says, at the budget and settings "
@@ -79,8 +80,10 @@ def results_page(root: str | Path) -> str:
         "its own agents (the experiments page's statistics section says which design each "
         "protocol has).",
         "",
-        "**Budgets.** *The paper's budget* only where the paper states it; elsewhere the `paper` "
-        "scale runs a *full budget* chosen here (each figure says why). `--scale small` runs the "
+        "**Budgets.** *The authors' budget* where their experiment configs (CARL's "
+        "`experiments/benchmarking/configs`, which trained the figures) or the paper's text state "
+        "it, each figure's budget line citing which; elsewhere the `paper` scale runs a *full "
+        "budget* chosen here (each figure says why). `--scale small` runs the "
         "budget two CPU cores afford: its runs have fewer seeds and steps, so they are evidence at "
         "a smaller budget, not a verdict, except where the full budget does not fit two CPU "
         f"cores in a working session: there the small run trains {MIN_SEEDS} seeds, the fewest "
@@ -95,7 +98,7 @@ def results_page(root: str | Path) -> str:
         "",
     ]
     for figure in FIGURES.values():
-        full = "the paper's budget" if figure.stated_budget else "full budget"
+        full = "the authors' budget" if figure.stated_budget else "full budget"
         scales = "; ".join(
             f"{_label(figure, scale)}: {_budgets(figure, scale)}" for scale in ("paper", "small")
         )
@@ -105,7 +108,7 @@ def results_page(root: str | Path) -> str:
             f"**Paper**: {figure.header('Paper')}  ",
             f"**Claim**: {figure.header('Claim')}  ",
             f"**Decision rule**: {figure.rule}  ",
-            f"**Settings and deviations from the paper**: {_settings(figure)}  ",
+            f"**Settings, their sources and deviations**: {_settings(figure)}  ",
             f"**Budget**: {figure.header('Budget')}  ",
             f"**Agents and test contexts**: {scales}  ",
             f"**Run**: `contextrl paper run {figure.name} --scale small` ({full}: `--scale paper`)",
@@ -242,7 +245,7 @@ def _settings(figure: PaperFigure) -> str:
 
 def _label(figure: PaperFigure, scale: str) -> str:
     if scale == "paper":
-        return "the paper's" if figure.stated_budget else "full"
+        return "the authors'" if figure.stated_budget else "full"
     return scale
 
 
@@ -287,7 +290,7 @@ def _budget(spec) -> str:
     """Agents × steps each (and the total), seeds, and the test contexts of one spec."""
     if not spec.trains_agents:
         return "exact solution"
-    trials = planned(spec).trials
+    trials = outlined(spec).trials
     per_agent = {spec.training_steps([t]) for t in trials}
     each = f"{per_agent.pop():,} steps each" if len(per_agent) == 1 else "steps differ"
     if spec.protocol == "hpo":  # a trial is one PB2 search of a population
@@ -306,7 +309,7 @@ def _budget(spec) -> str:
 
 def _test_contexts(spec) -> str:
     """How many contexts each agent is tested on, and whether they are a draw or a fixed set."""
-    plan = planned(spec)
-    sizes = sorted({len(plan.sets[t.test_set]) for t in plan.trials})
+    plan = outlined(spec)
+    sizes = sorted({plan.sizes[t.test_set] for t in plan.trials})
     kind = "drawn from the distribution" if spec.test_contexts == SAMPLED else "a fixed set"
     return f"{' or '.join(str(n) for n in sizes)} per agent ({kind})"
