@@ -35,7 +35,7 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import score_matrices
 from contextrl.compile_cache import use_compilation_cache
-from contextrl.experiments.plan import TEST_KEY, Trial, train_and_test_sets
+from contextrl.experiments.plan import TEST_KEY, Trial, train_and_test_sets, train_and_test_sizes
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.ray_cluster import start_ray
 from contextrl.experiments.ray_output import ray_output_to
@@ -554,11 +554,18 @@ def _sections(spec: HPOSpec, plan, cells: pd.DataFrame, curves: pd.DataFrame) ->
 def _expand(spec: HPOSpec) -> tuple[dict, list]:
     """The training and test sets, and a trial per PB2 run: its best member (the members
     themselves are Ray Tune's trials, run by _execute)."""
-    trials = [
+    return train_and_test_sets(spec), _trials(spec)
+
+
+def _outline(spec: HPOSpec) -> tuple[dict, list]:
+    return train_and_test_sizes(spec), _trials(spec)
+
+
+def _trials(spec: HPOSpec) -> list[Trial]:
+    return [
         Trial(f"best{_suffix(run)}", "best", spec.variants[0], run, "train", "test")
         for run in range(spec.seeds)
     ]
-    return train_and_test_sets(spec), trials
 
 
 def _execute(spec: HPOSpec, run, plan, *, executor, address, max_chunks, progress, verbose):
@@ -614,6 +621,7 @@ register_protocol(
         HPOSpec,
         _sections,
         _expand,
+        _outline,
         execute=_execute,
         runs_on_ray=True,
         training_section=False,  # its sections draw each member's schedule and return instead

@@ -55,13 +55,30 @@ class OptimalityGapSpec(CommonSpec):
 
 
 def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
+    """The training contexts, each also a set of its own for its specialists, and the trials."""
     train = draw_set(spec, "train", spec.train, spec.num_contexts, TRAIN_KEY)
     ids = list(range(spec.num_contexts))
     sets = {"train": ContextSet("train", train, {"context": ids})}
-    trials = grid(spec, "general", "train", "train")
     for i in ids:
-        name = f"train[{i}]"
-        sets[name] = ContextSet(name, train[i : i + 1], {"context": [i]})
+        sets[_own_set(i)] = ContextSet(_own_set(i), train[i : i + 1], {"context": [i]})
+    return sets, _trials(spec)
+
+
+def _outline(spec: OptimalityGapSpec) -> tuple[dict, list]:
+    own = {_own_set(i): 1 for i in range(spec.num_contexts)}
+    return {"train": spec.num_contexts, **own}, _trials(spec)
+
+
+def _own_set(i: int) -> str:
+    """The set of training context ``i`` alone: its specialists train and are tested there."""
+    return f"train[{i}]"
+
+
+def _trials(spec: OptimalityGapSpec) -> list[Trial]:
+    """The general agents (trained and tested on every context), then each context's specialists."""
+    trials = grid(spec, "general", "train", "train")
+    for i in range(spec.num_contexts):
+        name = _own_set(i)
         trials += [
             Trial(
                 f"specialist{i}-{variant}-s{seed}", "specialist", variant, seed, name, name, "train"
@@ -69,7 +86,7 @@ def _expand(spec: OptimalityGapSpec) -> tuple[dict, list]:
             for variant in spec.variants
             for seed in range(spec.seeds)
         ]
-    return sets, trials
+    return trials
 
 
 def _per_seed_text(stats: GapStatistics) -> str:
@@ -163,4 +180,4 @@ def _sections(spec: OptimalityGapSpec, plan: Plan, cells: pd.DataFrame, curves) 
     return sections
 
 
-register_protocol(Protocol(OptimalityGapSpec, _sections, _expand))
+register_protocol(Protocol(OptimalityGapSpec, _sections, _expand, _outline))

@@ -4,7 +4,8 @@ set), packed into chunks. Each protocol's own expansion lives in its module (``P
 Everything here is deterministic in the spec: contexts are drawn from keys derived from ``spec.seed``,
 so a resumed run rebuilds exactly the same plan. Trials that share a variant and set shapes are packed
 into *chunks* that train in one vmapped call; a chunk is also the unit that is written, resumed and
-sent to a Ray worker.
+sent to a Ray worker. A plan's :func:`outline` (its sets' sizes, trials and chunks) counts steps and
+chunks without drawing a context.
 """
 
 from __future__ import annotations
@@ -53,14 +54,9 @@ class Trial:
     def template(self) -> str:
         return self.template_set or self.train_set
 
-    def group(self, plan: Plan) -> tuple:
-        """Trials with equal groups can be vmapped together."""
-        return (
-            self.variant,
-            self.template,
-            len(plan.sets[self.train_set]),
-            len(plan.sets[self.test_set]),
-        )
+    def group(self, sizes: Mapping[str, int]) -> tuple:
+        """Trials with equal groups can be vmapped together (``sizes``: each set's contexts)."""
+        return (self.variant, self.template, sizes[self.train_set], sizes[self.test_set])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +65,22 @@ class Plan:
 
     spec: CommonSpec
     sets: dict[str, ContextSet]
+    trials: list[Trial]
+    chunks: list[list[int]]
+
+    @property
+    def sizes(self) -> dict[str, int]:
+        """The number of contexts in each set."""
+        return {name: len(s) for name, s in self.sets.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class Outline:
+    """A plan without its contexts: each set's size, the trials and their chunks, as
+    :func:`expand` gives them (what counting steps and chunks needs)."""
+
+    spec: CommonSpec
+    sizes: dict[str, int]
     trials: list[Trial]
     chunks: list[list[int]]
 
@@ -104,6 +116,11 @@ def draw_set(spec: CommonSpec, field: str, features: Mapping, n: int, stream: in
     return draw(space, resolved, n, jax.random.fold_in(jax.random.key(spec.seed), stream))
 
 
+def train_and_test_sizes(spec: CommonSpec) -> dict[str, int]:
+    """The sizes of :func:`train_and_test_sets`' sets."""
+    return {"train": spec.num_train_contexts, "test": spec.num_test_contexts}
+
+
 def train_and_test_sets(spec: CommonSpec) -> dict[str, ContextSet]:
     """The ``train`` set (``num_train_contexts`` drawn from ``spec.train``) and the ``test`` set
     (``num_test_contexts`` from ``spec.test``, or from ``spec.train`` where it gives none), each
@@ -119,11 +136,10 @@ def train_and_test_sets(spec: CommonSpec) -> dict[str, ContextSet]:
     return {"train": ContextSet("train", train), "test": ContextSet("test", test)}
 
 
-def _chunks(plan_trials: list[Trial], sets: dict[str, ContextSet], size: int) -> list[list[int]]:
+def _chunks(plan_trials: list[Trial], sizes: Mapping[str, int], size: int) -> list[list[int]]:
     groups: dict[tuple, list[int]] = {}
-    stub = Plan(None, sets, plan_trials, [])  # type: ignore[arg-type]
     for index, trial in enumerate(plan_trials):
-        groups.setdefault(trial.group(stub), []).append(index)
+        groups.setdefault(trial.group(sizes), []).append(index)
     return [
         members[i : i + size] for members in groups.values() for i in range(0, len(members), size)
     ]
@@ -141,10 +157,27 @@ def expand(spec: CommonSpec) -> Plan:
     """The plan of a validated spec (empty for a protocol that trains no agents)."""
     if not spec.trains_agents:
         return Plan(spec, {}, [], [])
-    sets, trials = protocol_of(spec).expand(spec)
+    protocol = protocol_of(spec)
+    sets, trials = protocol.expand(spec)
     ids = [t.id for t in trials]
     assert len(set(ids)) == len(ids), "trial ids must be unique"
-    return Plan(spec, sets, trials, _chunks(trials, sets, spec.batch_size))
+    sizes = {name: len(s) for name, s in sets.items()}
+    if protocol.outline is not None:  # the counts read without drawing are this plan's
+        assert protocol.outline(spec) == (sizes, trials), f"{spec.protocol}: outline ≠ expansion"
+    return Plan(spec, sets, trials, _chunks(trials, sizes, spec.batch_size))
+
+
+def outline(spec: CommonSpec) -> Outline:
+    """What :func:`expand` plans, without drawing a context: each set's size, the trials and their
+    chunks (from the protocol's ``outline``; expanded where it has none)."""
+    if not spec.trains_agents:
+        return Outline(spec, {}, [], [])
+    protocol = protocol_of(spec)
+    if protocol.outline is None:
+        plan = expand(spec)
+        return Outline(spec, plan.sizes, plan.trials, plan.chunks)
+    sizes, trials = protocol.outline(spec)
+    return Outline(spec, sizes, trials, _chunks(trials, sizes, spec.batch_size))
 
 
 def stack_sets(sets: Sequence[Any]) -> Any:

@@ -146,7 +146,7 @@ def _estimate(spec: CommonSpec, plan: Plan, root: str | os.PathLike) -> tuple[fl
             "nothing was compiled or trained"
         )
     timing = calibrate(spec, plan)
-    groups = len({plan.trials[c[0]].group(plan) for c in plan.chunks})
+    groups = len({plan.trials[c[0]].group(plan.sizes) for c in plan.chunks})
     chunk_seconds = sum(timing["chunk"] * len(c) / timing["size"] for c in plan.chunks)
     how = (
         "training at the measured steps/s"

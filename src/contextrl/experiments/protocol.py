@@ -43,7 +43,9 @@ class Protocol:
     ``sections(spec, plan, results, curves)`` builds the protocol's own report sections (a protocol
     that trains agents gets its results as score cells, :func:`contextrl.analysis.scores.score_cells`,
     so every section reads the same numbers); the report adds the shared ones it asks for around
-    them. ``expand(spec)`` returns the named context sets and the trials (None: trains no agents).
+    them. ``expand(spec)`` returns the named context sets and the trials (None: trains no agents);
+    ``outline(spec)`` returns the same trials and each set's size without drawing a context (None:
+    counting steps and chunks expands the spec).
     ``vary(data, items)`` applies ``--vary`` items to a spec mapping and returns a notice (None: each
     item is FEATURE=DIST, merged into the spec's ``vary_field``). ``execute(spec, run, plan, *,
     executor, address, max_chunks, progress, verbose) -> Summary`` runs it where it does not run as
@@ -52,6 +54,7 @@ class Protocol:
     spec: type[CommonSpec]
     sections: Callable[..., list]
     expand: Callable[[Any], tuple[dict, list]] | None = None
+    outline: Callable[[Any], tuple[dict[str, int], list]] | None = None
     vary: Callable[[dict, list[str]], str | None] | None = None
     execute: Callable[..., Any] | None = None
     runs_on_ray: bool = False  # it starts Ray itself (--address applies)

@@ -28,6 +28,7 @@ from contextrl.analysis.scores import (
 )
 from contextrl.experiments.plan import (
     TRIAL_COLUMNS,
+    Outline,
     Plan,
     Trial,
     context_columns,
@@ -50,7 +51,7 @@ MISSING_TEXT = (
 
 
 def absent_rows(
-    plan: Plan,
+    plan: Plan | Outline,
     results: pd.DataFrame,
     contexts_of: Callable[[Trial], dict[str, Any]],
     why: Callable[[Trial], str],
@@ -66,7 +67,7 @@ def absent_rows(
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
-def absence_reason(run: RunDir, plan: Plan) -> Callable[[Trial], str]:
+def absence_reason(run: RunDir, plan: Plan | Outline) -> Callable[[Trial], str]:
     """Why a planned trial has no results: its chunk failed (with the error), has not run, or ran
     without writing its rows."""
     failed = {trial: f for f in run.failures() for trial in f["trials"]}
@@ -84,8 +85,9 @@ def absence_reason(run: RunDir, plan: Plan) -> Callable[[Trial], str]:
     return why
 
 
-def run_cells(run: RunDir, plan: Plan, results: pd.DataFrame) -> pd.DataFrame:
-    """The score cells of a run's results, with every planned cell that has none named."""
+def run_cells(run: RunDir, plan: Plan | Outline, results: pd.DataFrame) -> pd.DataFrame:
+    """The score cells of a run's results, with every planned cell that has none named (by the
+    trial's test contexts: an outline does where every trial has results)."""
     names = plan.spec.space().names
     absent = absent_rows(
         plan,

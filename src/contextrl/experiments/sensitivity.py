@@ -117,6 +117,12 @@ def _expand(spec: SensitivitySpec) -> tuple[dict, list]:
     return sets, grid(spec, "default", "default", "scaled")
 
 
+def _outline(spec: SensitivitySpec) -> tuple[dict, list]:
+    """The default context, and it followed by each feature scaled (``_expand``'s sets)."""
+    kept, _ = spec.scaled_values()
+    return {"default": 1, "scaled": 1 + len(kept)}, grid(spec, "default", "default", "scaled")
+
+
 def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
     by_feature = magnitude_lines(cells)
     rows = []
@@ -207,6 +213,7 @@ register_protocol(
         SensitivitySpec,
         _sections,
         _expand,
+        _outline,
         vary=_vary,
         per_context_figures=False,  # its own view: return against the magnitude A per feature
     )

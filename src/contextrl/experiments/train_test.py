@@ -18,7 +18,7 @@ from contextrl.analysis.report import Section
 from contextrl.analysis.scores import ONE_SEED, score_intervals, score_matrices
 from contextrl.context.distributions import Uniform, draw
 from contextrl.context.features import ContextError
-from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, grid
+from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, grid
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure, plane_points
 from contextrl.experiments.spec import (
@@ -154,17 +154,24 @@ def train_test_contexts(spec: TrainTestSpec, mode: str, key) -> Any:
     return defaults.replace(**{name_x: np.asarray(x), name_y: np.asarray(y)})
 
 
+def _test_grid(spec: TrainTestSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The test contexts' two features: a square grid over the test box, at most
+    ``num_test_contexts`` points."""
+    _, test_box = spec.boxes()
+    (_, (sx0, sx1)), (_, (sy0, sy1)) = test_box.items()
+    side = int(np.floor(np.sqrt(spec.num_test_contexts)))
+    return np.meshgrid(np.linspace(sx0, sx1, side), np.linspace(sy0, sy1, side), indexing="ij")
+
+
 def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
     train_box, test_box = spec.boxes()
     space = spec.space()
-    (name_x, (sx0, sx1)), (name_y, (sy0, sy1)) = test_box.items()
-    side = int(np.floor(np.sqrt(spec.num_test_contexts)))
-    gx, gy = np.meshgrid(np.linspace(sx0, sx1, side), np.linspace(sy0, sy1, side), indexing="ij")
+    name_x, name_y = test_box
+    gx, gy = _test_grid(spec)
     test = draw(space, {}, gx.size, jax.random.key(0)).replace(
         **{name_x: gx.ravel().astype(np.float32), name_y: gy.ravel().astype(np.float32)}
     )
     sets = {}
-    trials = []
     boxes = list(train_box.values())
     for mode in spec.modes:
         key = jax.random.fold_in(jax.random.key(spec.seed), TRAIN_KEY + ord(mode))
@@ -176,8 +183,23 @@ def _expand(spec: TrainTestSpec) -> tuple[dict, list]:
         sets[f"test-{mode}"] = ContextSet(
             f"test-{mode}", test, {"region": regions, "mode": [mode] * len(regions)}
         )
-        trials += grid(spec, f"mode{mode}", f"train-{mode}", f"test-{mode}")
-    return sets, trials
+    return sets, _trials(spec)
+
+
+def _outline(spec: TrainTestSpec) -> tuple[dict, list]:
+    tests = _test_grid(spec)[0].size
+    sizes = {}
+    for mode in spec.modes:
+        sizes |= {f"train-{mode}": spec.num_train_contexts, f"test-{mode}": tests}
+    return sizes, _trials(spec)
+
+
+def _trials(spec: TrainTestSpec) -> list[Trial]:
+    return [
+        trial
+        for mode in spec.modes
+        for trial in grid(spec, f"mode{mode}", f"train-{mode}", f"test-{mode}")
+    ]
 
 
 def _sections(spec: TrainTestSpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
@@ -265,6 +287,7 @@ register_protocol(
         TrainTestSpec,
         _sections,
         _expand,
+        _outline,
         vary=_vary,
         draws_heatmap=True,  # its sections draw a heat map per mode and variant
     )

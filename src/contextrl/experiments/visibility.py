@@ -19,7 +19,7 @@ from contextrl.analysis.scores import (
     score_matrices,
     stated,
 )
-from contextrl.experiments.plan import Plan, grid, train_and_test_sets
+from contextrl.experiments.plan import Plan, grid, train_and_test_sets, train_and_test_sizes
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure
 from contextrl.experiments.spec import CommonSpec, check_int
@@ -49,6 +49,10 @@ class VisibilitySpec(CommonSpec):
 
 def _expand(spec: VisibilitySpec) -> tuple[dict, list]:
     return train_and_test_sets(spec), grid(spec, "visibility", "train", "test")
+
+
+def _outline(spec: VisibilitySpec) -> tuple[dict, list]:
+    return train_and_test_sizes(spec), grid(spec, "visibility", "train", "test")
 
 
 def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
@@ -93,6 +97,6 @@ def _sections(spec: VisibilitySpec, plan: Plan, cells: pd.DataFrame, curves) -> 
     return [Section("Context visibility", text, [("Test return", rows)], figures)]
 
 
-register_protocol(
-    Protocol(VisibilitySpec, _sections, _expand, per_context_intervals=False)  # its own table
+register_protocol(  # per_context_intervals: its own table shows them
+    Protocol(VisibilitySpec, _sections, _expand, _outline, per_context_intervals=False)
 )

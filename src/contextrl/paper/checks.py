@@ -25,7 +25,7 @@ from contextrl.analysis.scores import (
 from contextrl.experiments.reports import run_cells
 from contextrl.experiments.runs import RunDir
 from contextrl.experiments.train_test import REGIONS
-from contextrl.paper.plans import planned
+from contextrl.paper.plans import outlined, planned
 
 # The decision rules, fixed before any run. A verdict needs this many seeds (the unit of replication)
 MIN_SEEDS = 5
@@ -202,7 +202,7 @@ def _unlearned_and_complete(runs: Mapping[str, RunDir]) -> Verdict | None:
         spec = run.spec()
         if not spec.agent_entry().trained:
             return None
-        plan, finished = planned(spec), run.finished()
+        plan, finished = outlined(spec), run.finished()
         for c, chunk in enumerate(plan.chunks):
             if c not in finished:
                 waiting |= {(plan.trials[i].variant, plan.trials[i].kind) for i in chunk}
@@ -251,8 +251,13 @@ def _all(decisions: list[bool | None]) -> bool | None:
 
 
 def _cells(run: RunDir):
-    spec = run.spec()
-    return spec, run_cells(run, planned(spec), run.results())
+    """The run's score cells; its contexts are drawn only where a trial has no results (its cells
+    are named by its test contexts)."""
+    spec, results = run.spec(), run.results()
+    plan = outlined(spec)
+    if {t.id for t in plan.trials} - (set(results["trial"]) if len(results) else set()):
+        plan = planned(spec)
+    return spec, run_cells(run, plan, results)
 
 
 def gap_check(at_least: float, finished: bool = False, most_per_step: float | None = None) -> Check:

@@ -13,7 +13,7 @@ from contextrl.experiments.runs import RunDir
 from contextrl.experiments.spec import parse_spec
 from contextrl.paper.catalogue import CAUSES, FIGURES, SCALES, PaperFigure, spec_data
 from contextrl.paper.checks import GATE, MIN_SEEDS, WORDS, Verdict
-from contextrl.paper.plans import planned, training_steps
+from contextrl.paper.plans import outlined, training_steps
 from contextrl.paper.runs import (
     estimate,
     finished_runs,
@@ -290,7 +290,7 @@ def _budget(spec) -> str:
     """Agents × steps each (and the total), seeds, and the test contexts of one spec."""
     if not spec.trains_agents:
         return "exact solution"
-    trials = planned(spec).trials
+    trials = outlined(spec).trials
     per_agent = {spec.training_steps([t]) for t in trials}
     each = f"{per_agent.pop():,} steps each" if len(per_agent) == 1 else "steps differ"
     if spec.protocol == "hpo":  # a trial is one PB2 search of a population
@@ -309,7 +309,7 @@ def _budget(spec) -> str:
 
 def _test_contexts(spec) -> str:
     """How many contexts each agent is tested on, and whether they are a draw or a fixed set."""
-    plan = planned(spec)
-    sizes = sorted({len(plan.sets[t.test_set]) for t in plan.trials})
+    plan = outlined(spec)
+    sizes = sorted({plan.sizes[t.test_set] for t in plan.trials})
     kind = "drawn from the distribution" if spec.test_contexts == SAMPLED else "a fixed set"
     return f"{' or '.join(str(n) for n in sizes)} per agent ({kind})"

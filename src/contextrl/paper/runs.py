@@ -23,7 +23,7 @@ from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import CommonSpec, SpecError, parse_spec, spec_to_dict
 from contextrl.paper.catalogue import FIGURES, PaperFigure, spec_data
 from contextrl.paper.checks import Verdict
-from contextrl.paper.plans import parsed_spec, planned, training_steps
+from contextrl.paper.plans import outlined, parsed_spec, training_steps
 
 PAPER_RUNS = "results/paper"
 
@@ -61,7 +61,7 @@ def finished_runs(figure: PaperFigure, root: str | Path, scale: str) -> dict[str
     """The figure's runs at ``scale`` under ``root`` when every part has all its results."""
     runs = started_runs(figure, root, scale)
     for run in (runs or {}).values():
-        plan = planned(run.spec())
+        plan = outlined(run.spec())
         if run.results().empty or len(run.finished()) < max(len(plan.chunks), 1):
             return None
     return runs
@@ -255,11 +255,11 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
 def trained_steps(run: RunDir, spec) -> int:
     """Training steps of the run's finished chunks: the time a run under way (a full run stopped
     part-way, or one given more seeds) has spent trained these, not its whole plan."""
-    return spec.training_steps(_trials_of(planned(spec), run.finished()))
+    return spec.training_steps(_trials_of(outlined(spec), run.finished()))
 
 
 def _trials_of(plan, chunks: set[int]) -> list:
-    """The plan's trials in the chunks numbered ``chunks``."""
+    """The trials of a plan (or its outline) in the chunks numbered ``chunks``."""
     return [plan.trials[i] for n, chunk in enumerate(plan.chunks) if n in chunks for i in chunk]
 
 
@@ -297,7 +297,7 @@ def progress(
             spec, done = run.spec(), run.finished()
         else:
             spec, done = parse_spec(_new_part(figure, part, scale, batch_size)), set()
-        plan = planned(spec)
+        plan = outlined(spec)
         left = set(range(len(plan.chunks))) - done
         parts.append(
             PartProgress(
