@@ -183,9 +183,14 @@ def test_docs_write_only_where_told(capsys, tmp_path, monkeypatch):
 
 
 def test_paper_reads_the_kept_runs_or_says_where_it_looked(capsys, tmp_path, monkeypatch):
+    """Without kept runs (an installed wheel) the page is refused, saying where it looked; the
+    listing still lists every figure, its estimates not measured."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(paper_runs, "REPOSITORY_RUNS", tmp_path / "none")
-    refused(capsys, ["no runs in ./results/paper or", "give --runs FOLDER"], "paper", "list")
+    refused(capsys, ["no runs in ./results/paper or", "give --runs FOLDER"], "paper", "page")
+    status, out, _ = cli(capsys, "paper", "list")
+    assert status == 0 and "kirk_cartpole" in out and "time (small): not measured" in out, out
+    assert not any(tmp_path.iterdir())
     monkeypatch.setattr(paper_runs, "REPOSITORY_RUNS", ROOT / "results/paper")
     assert (
         paper_runs.kept_runs() == paper_runs.REPOSITORY_RUNS

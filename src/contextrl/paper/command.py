@@ -21,7 +21,7 @@ def paper_command(args: argparse.Namespace) -> int:
     if args.action != "run" and args.figure is not None:
         raise SpecError(f"paper {args.action}: takes no figure (got {args.figure!r}); run does")
     if args.runs is None:  # run writes under ./results/paper; list and page read the kept runs
-        args.runs = PAPER_RUNS if args.action == "run" else kept_runs()
+        args.runs = PAPER_RUNS if args.action == "run" else kept_runs(args.action == "page")
     elif args.action != "run" and not Path(args.runs).is_dir():
         raise SpecError(
             f"paper {args.action}: --runs {args.runs} is not a folder; give the folder "

@@ -32,13 +32,16 @@ PAPER_RUNS = "results/paper"
 REPOSITORY_RUNS = Path(__file__).resolve().parents[3] / PAPER_RUNS
 
 
-def kept_runs() -> Path:
+def kept_runs(required: bool = True) -> Path:
     """Where ``contextrl paper list|page`` reads runs when not told: ./results/paper, else the
-    repository's (a checkout the package is installed from); refused, saying where it looked,
-    when neither holds runs."""
+    repository's (a checkout the package is installed from); when neither holds runs, refused,
+    saying where it looked, or (not ``required``: a listing, whose estimates then say "not
+    measured") ./results/paper."""
     for folder in (Path(PAPER_RUNS), REPOSITORY_RUNS):
         if any(folder.glob("*/*/spec.yaml")):
             return folder
+    if not required:
+        return Path(PAPER_RUNS)
     raise SpecError(
         f"contextrl paper: no runs in ./{PAPER_RUNS} or {REPOSITORY_RUNS}; give --runs FOLDER "
         "(the repository keeps its runs in results/paper; contextrl paper run writes new ones)"
