@@ -68,7 +68,7 @@ SHARED_ROUND = """
 import dataclasses, json
 import jax, numpy as np
 from contextrl.experiments import expand, parse_spec
-from contextrl.experiments.hpo import _round_trainer
+from contextrl.experiments.protocols.hpo import _round_trainer
 
 options = {"num_envs": 4, "num_steps": 32, "hidden_sizes": [8]}
 spec = parse_spec({"protocol": "hpo", "agent": "ppo", "steps_per_round": 256, "agent_options": options})

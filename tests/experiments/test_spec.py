@@ -13,7 +13,7 @@ from contextrl.experiments import (
     run_experiment,
     spec_to_dict,
 )
-from contextrl.experiments.train_test import REGIONS, region_of, train_test_contexts
+from contextrl.experiments.protocols.train_test import REGIONS, region_of, train_test_contexts
 from tests.helpers import ROOT
 
 pytestmark = pytest.mark.quick

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from contextrl.experiments.tabular import (
+from contextrl.experiments.protocols.tabular import (
     TabularCMDP,
     mirrored_cmdp,
     policy_values,

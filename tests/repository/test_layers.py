@@ -44,7 +44,8 @@ LAYERS = [
 # Inside experiments, the order the modules build on each other (lowest first): specs, the protocol
 # record, their expansion into a plan of trials, running a chunk, run directories and more seeds for
 # one (starting Ray, and where Ray's output goes in a run), reports, the protocols, executors, the
-# runner, the commands around it, and the package that registers the protocols.
+# runner, the commands around it, and the package. The protocols live in their own folder,
+# protocols/, whose package registers them.
 EXPERIMENTS = [
     "spec",
     "protocol",
@@ -55,12 +56,13 @@ EXPERIMENTS = [
     "ray_cluster",
     "ray_output",
     "reports",
-    "sensitivity",
-    "optimality_gap",
-    "visibility",
-    "train_test",
-    "tabular",
-    "hpo",
+    "protocols.sensitivity",
+    "protocols.optimality_gap",
+    "protocols.visibility",
+    "protocols.train_test",
+    "protocols.tabular",
+    "protocols.hpo",
+    "protocols",
     "executors",
     "runner",
     "planning",

@@ -4,18 +4,12 @@ from contextrl import experiments
 run, summary = experiments.run_experiment({"protocol": "optimality_gap", "env": "CartPole"})
 experiments.report(run.path)
 
-Each protocol is one module here (its spec class, expansion into trials and report sections, named
-by a :class:`Protocol` record); importing the package registers them all.
+Each protocol is one module in :mod:`contextrl.experiments.protocols` (its spec class, expansion into
+trials and report sections, named by a :class:`Protocol` record), the machinery they share beside it;
+importing the package registers them all.
 """
 
-from contextrl.experiments import (  # noqa: F401  (registers the protocols)
-    hpo,
-    optimality_gap,
-    sensitivity,
-    tabular,
-    train_test,
-    visibility,
-)
+from contextrl.experiments import protocols  # noqa: F401  (registers the protocols)
 from contextrl.experiments.plan import Plan, Trial, expand
 from contextrl.experiments.protocol import PROTOCOLS, Protocol, protocol_names, register_protocol
 from contextrl.experiments.runner import carry_on, open_run, prepare, report, resume, run_experiment

@@ -22,9 +22,9 @@ from contextrl.analysis.scores import (
     score_matrices,
     worst_drop,
 )
+from contextrl.experiments.protocols.train_test import REGIONS
 from contextrl.experiments.reports import run_cells
 from contextrl.experiments.runs import RunDir
-from contextrl.experiments.train_test import REGIONS
 from contextrl.paper.plans import outlined, planned
 
 # The decision rules, fixed before any run. A verdict needs this many seeds (the unit of replication)

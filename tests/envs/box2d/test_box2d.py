@@ -378,8 +378,8 @@ def test_registered_with_carl_aliases_and_variants():
 # ---- landing in space ----------------------------------------------------------------------------
 def test_landing_in_space_spec_validates_against_the_lander():
     """The paper's planets (CARL's g = 9.80665 multiples) against the spec's train and test regions."""
+    from contextrl.experiments.protocols.train_test import region_of
     from contextrl.experiments.spec import load_yaml, parse_spec
-    from contextrl.experiments.train_test import region_of
 
     path = EXAMPLES / "box2d" / "train_test_landing_in_space.yaml"
     spec = parse_spec(load_yaml(path.read_text(), str(path)))
