@@ -22,6 +22,7 @@ import numpy as np
 import contextrl as crl
 from contextrl.compile_cache import cache_contents, clear_cache, use_compilation_cache
 from contextrl.context.features import ContextError, ContextSpace
+from contextrl.core.registry import ENVIRONMENT_INDEX
 from contextrl.xla_flags import xla_cpu_workaround
 
 
@@ -31,12 +32,6 @@ def _space_label(space: Any) -> str:
     if hasattr(space, "n"):
         return f"Discrete({int(space.n)})"
     return f"Box({'×'.join(str(d) for d in space.shape)})"
-
-
-# The rows of the registered environments, written by tools/write_environment_index.py and tested
-# to equal what building each environment gives: `contextrl list` reads them instead of building
-# every simulator (seconds each for MuJoCo's and Brax's).
-ENVIRONMENT_INDEX = Path(__file__).parent / "environments.json"
 
 
 def environment_row(env_id: str) -> dict[str, Any]:

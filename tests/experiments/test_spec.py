@@ -1,6 +1,7 @@
 """Specs are refused before anything runs; plans expand deterministically into the right contexts."""
 
 import os
+import re
 
 import numpy as np
 import pytest
@@ -186,3 +187,16 @@ def test_xla_workaround_adds_its_flag_once_and_respects_the_user(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_concurrency_optimized_scheduler=true")
     xla_cpu_workaround()
     assert os.environ["XLA_FLAGS"].endswith("scheduler=true")
+
+
+def test_an_environment_whose_extra_is_missing_names_the_extra(monkeypatch):
+    """A shipped environment whose simulator is not installed (not registered) is named with the
+    extra that brings it, in the spec's refusal and in ``crl.make``'s."""
+    from contextrl.core import registry
+
+    monkeypatch.delitem(registry._REGISTRY, "DmcWalker")
+    extra = 'the dmc family, whose simulator is not installed: pip install "contextrl[dmc]"'
+    with pytest.raises(SpecError, match=re.escape(extra)):
+        parse_spec({"protocol": "visibility", "env": "DmcWalker", "agent": "random"})
+    with pytest.raises(KeyError, match=re.escape(extra)):
+        registry.spec("DmcWalker")

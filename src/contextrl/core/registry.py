@@ -4,9 +4,19 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import json
 import re
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
+
+# The rows of every environment the package ships, installed or not, written by
+# tools/write_environment_index.py and tested to equal what building each environment gives:
+# `contextrl list` reads them instead of building every simulator (seconds each for MuJoCo's and
+# Brax's), and an unregistered id found there names the extra it needs.
+ENVIRONMENT_INDEX = Path(__file__).resolve().parents[1] / "environments.json"
+# The families an extra brings (pip install "contextrl[<family>]"): their simulators are optional.
+EXTRA_FAMILIES = ("box2d", "brax", "dmc", "rna")
 
 # The families whose environments take a ``backend`` argument (their simulator's pipeline).
 BACKEND_FAMILIES = {"brax": "Brax", "dmc": "dm_control"}
@@ -78,6 +88,15 @@ def register(
         _ALIASES[alias] = id
 
 
+def _uninstalled_family(id: str) -> str | None:
+    """The optional family of a shipped environment that is not registered (its extra missing)."""
+    if not ENVIRONMENT_INDEX.exists():
+        return None
+    entry = json.loads(ENVIRONMENT_INDEX.read_text(encoding="utf-8")).get(id)
+    family = entry and entry.get("family")
+    return family if family in EXTRA_FAMILIES else None
+
+
 def spec(id: str) -> EnvSpec:
     """The registered spec for an id or alias, or a clear error listing the valid ids."""
     canonical = _ALIASES.get(id, id)
@@ -88,6 +107,12 @@ def spec(id: str) -> EnvSpec:
         if len(matches) == 1:
             (canonical,) = matches
     if canonical not in _REGISTRY:
+        family = _uninstalled_family(id)
+        if family:
+            raise KeyError(
+                f"environment {id!r} is in the {family} family, whose simulator is not installed: "
+                f'pip install "contextrl[{family}]"'
+            )
         close = difflib.get_close_matches(id, [*_REGISTRY, *_ALIASES], n=3)
         hint = f" Did you mean {close}?" if close else ""
         raise KeyError(f"unknown environment {id!r}.{hint} Registered: {sorted(_REGISTRY)}")

@@ -10,7 +10,7 @@ from pathlib import Path
 from contextrl.analysis.intervals import SAMPLED
 from contextrl.experiments.planning import duration
 from contextrl.experiments.runs import RunDir
-from contextrl.experiments.spec import parse_spec
+from contextrl.experiments.spec import SpecError, parse_spec
 from contextrl.paper.catalogue import CAUSES, FIGURES, SCALES, PaperFigure, spec_data
 from contextrl.paper.checks import GATE, MIN_SEEDS, WORDS, Verdict
 from contextrl.paper.plans import outlined, training_steps
@@ -29,17 +29,24 @@ def figure_rows(root: str | Path) -> list[dict[str, str]]:
     """A row per figure: what ``contextrl paper`` lists."""
     rows = []
     for figure in FIGURES.values():
-        steps = {
-            scale: sum(
-                training_steps(parse_spec(spec_data(figure, p, scale))) for p in figure.files()
-            )
-            for scale in ("paper", "small")
+        row = {
+            "figure": figure.name,
+            "paper": figure.header("Paper").split(":")[0],
+            "claim": figure.header("Claim"),
         }
+        try:
+            steps = {
+                scale: sum(
+                    training_steps(parse_spec(spec_data(figure, p, scale))) for p in figure.files()
+                )
+                for scale in ("paper", "small")
+            }
+        except SpecError as error:  # an environment whose extra is not installed
+            rows.append({**row, "not counted": str(error)})
+            continue
         rows.append(
             {
-                "figure": figure.name,
-                "paper": figure.header("Paper").split(":")[0],
-                "claim": figure.header("Claim"),
+                **row,
                 "steps (paper)": f"{steps['paper']:,}",
                 "time (paper)": estimate(figure, "paper", root),
                 "steps (small)": f"{steps['small']:,}",
