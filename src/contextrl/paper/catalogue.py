@@ -195,7 +195,7 @@ FIGURES = {
                 harmless=("initial_angle_max", "initial_velocity_max"),
                 brittle=("max_speed", "dt", "g", "l"),
             ),
-            {"seeds": 3, "eval_episodes": 5},
+            {**_SMALL_SAC, "seeds": 3, "eval_episodes": 5},
         ),
         PaperFigure(
             "optgap_cartpole",
@@ -203,7 +203,9 @@ FIGURES = {
             {**_SMALL_C51, "num_contexts": 8, "seeds": 3, "batch_size": 9},
         ),
         PaperFigure(
-            "optgap_pendulum", gap_check(0.0), {"num_contexts": 8, "seeds": 3, "batch_size": 9}
+            "optgap_pendulum",
+            gap_check(0.0),
+            {**_SMALL_SAC, "num_contexts": 8, "seeds": 3, "batch_size": 9},
         ),
         PaperFigure(
             "visibility_dmcwalker",
@@ -248,7 +250,7 @@ FIGURES = {
         PaperFigure(
             "visibility_pendulum",
             similar_check("concat_varying", "hidden"),
-            {"seeds": 5, "num_test_contexts": 50, "eval_episodes": 5},
+            {**_SMALL_SAC, "seeds": 5, "num_test_contexts": 50, "eval_episodes": 5},
         ),
         *(
             PaperFigure(
@@ -265,13 +267,17 @@ FIGURES = {
             for name, check, small in (
                 ("kirk_cartpole", kirk_check(concat_extrapolates=True), _SMALL_C51),
                 ("kirk_pendulum_gravity_dt", kirk_check(), _SMALL_SAC),
-                ("kirk_pendulum_gravity_length", better_check("hidden", "concat_varying"), {}),
+                (
+                    "kirk_pendulum_gravity_length",
+                    better_check("hidden", "concat_varying"),
+                    _SMALL_SAC,
+                ),
             )
         ),
         *(
             figure
             for env, small in (
-                ("pendulum", {}),
+                ("pendulum", _SMALL_SAC),
                 ("mountaincar", _SMALL_C51),
                 ("cartpole", _SMALL_C51),
                 ("acrobot", _SMALL_C51),
