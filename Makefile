@@ -38,7 +38,7 @@ system-deps:
 # Three tiers: `test` before every commit (every module and family; 15 minutes on 2 cores from a fresh
 # clone), `test-quick` after every edit (no learning, no large compiles; 90 s), `test-slow` for what
 # cannot be made cheap (the other MJX and Brax parity programs, the reaching tasks' checker, the
-# families' own learning checks, PB2 on Ray); CI runs `test` and `test-slow`.
+# families' own learning checks, PB2 on Ray, the wheel in a fresh venv); CI runs `test` and `test-slow`.
 PYTEST := $(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
 
 test: system-deps install
