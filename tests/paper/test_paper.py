@@ -457,6 +457,14 @@ def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
     assert CAUSES in page and MARGIN_RULE.split(": ")[1] in page
     tabular = page.split("## tabular_cmdp\n")[1].split("\n## ")[0]
     assert "**Solved exactly** (exact solution; " in tabular and "): **reproduced**." in tabular
+    # a full budget not run here: its time at the measured rate, and the commands that run it
+    # elsewhere (a GPU machine only for a JAX environment's trials, vmapped together)
+    gap = page.split("## optgap_pendulum\n")[1].split("\n## ")[0]
+    assert "--scale paper --executor ray --address auto" in gap
+    assert "contextrl paper run optgap_pendulum --scale paper --batch-size 650" in gap
+    walker = page.split("## visibility_dmcwalker\n")[1].split("\n## ")[0]
+    assert "from runs of other agent settings (" in walker and "per training step)" in walker
+    assert "--batch-size" not in walker  # dm_control steps on the host
     for name in ("baseline_cartpole_default", "platformer_conditioning"):
         section = page.split(f"## {name}\n")[1].split("\n## ")[0]
         full = "the authors' budget" if FIGURES[name].stated_budget else "full budget"

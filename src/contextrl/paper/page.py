@@ -178,15 +178,24 @@ def results_page(root: str | Path) -> str:
 
 
 def _on_a_cluster(figure: PaperFigure) -> str:
-    """For a figure whose full budget does not fit two CPU cores: the command that spreads its
-    chunks over a Ray cluster."""
-    if not figure.decided_small:
+    """For a figure whose full budget has not run here: the commands that run it elsewhere, on a
+    Ray cluster (its chunks spread over the workers) and, for a JAX environment, on a GPU machine
+    (every trial of a part in one vmapped call)."""
+    specs = [parse_spec(spec_data(figure, part, "paper")) for part in figure.files()]
+    if not any(spec.trains_agents for spec in specs):
         return ""
-    return (
+    text = (
         f" On a Ray cluster, from one of its machines: `contextrl paper run {figure.name} --scale "
         "paper --executor ray --address auto` (its chunks spread over the cluster's workers; "
-        "[Executors and Ray clusters](experiments.md#executors-and-ray-clusters))."
+        "[Executors and Ray clusters](experiments.md#executors-and-ray-clusters))"
     )
+    if all(not spec.host and spec.protocol != "hpo" for spec in specs):
+        trials = max(len(outlined(spec).trials) for spec in specs)
+        text += (
+            f"; on a GPU machine: `contextrl paper run {figure.name} --scale paper --batch-size "
+            f"{trials}` (every trial of a part in one vmapped call)"
+        )
+    return text + "."
 
 
 def _under_way(figure: PaperFigure, root: str | Path, scale: str) -> str:

@@ -208,7 +208,7 @@ def machines(runs) -> str:
 def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
     """Wall time of ``figure`` at ``scale`` and where: measured when it ran under ``root``, else
     extrapolated from the seconds per training step of finished runs with the same environment and
-    agent (those at ``scale``, else at the small scale), else "not measured"."""
+    agent (those at ``scale``, else at the small scale), that rate stated, else "not measured"."""
     runs = finished_runs(figure, root, scale)
     if runs is not None:
         return (
@@ -219,12 +219,18 @@ def estimate(figure: PaperFigure, scale: str, root: str | Path) -> str:
     steps = sum(training_steps(spec) for spec in specs)
     if rate is None or not steps:
         return "not measured"
-    return f"≈ {duration(steps * rate[0])} on {rate[1]}"
+    return f"≈ {duration(steps * rate[0])} on {rate[1]} ({per_step(rate[0])} per training step)"
+
+
+def per_step(seconds: float) -> str:
+    """Seconds per training step, readably (``0.42 ms``, ``31 µs``)."""
+    return f"{seconds * 1e3:.3g} ms" if seconds >= 1e-3 else f"{seconds * 1e6:.3g} µs"
 
 
 def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] | None:
     """Wall seconds per training step of the finished paper runs under ``root`` with the
-    environments and agents of ``specs`` and the machines they ran on; None when there are none.
+    environments and agents of ``specs`` and the machines they ran on (saying so where their agent
+    settings differ from ``specs``'); None when there are none.
     Runs whose agents have the same settings apart from the budget come first (another agent's batch
     size or update rate can change the cost of a step several times over), those at ``scale`` before
     those at the small scale."""
@@ -251,7 +257,9 @@ def seconds_per_step(specs, scale: str, root: str | Path) -> tuple[float, str] |
             if measured:
                 seconds = sum(wall_seconds(run) for run, _ in measured)
                 total = sum(steps for _, steps in measured)
-                return seconds / total, machines(run for run, _ in measured)
+                where = machines(run for run, _ in measured)
+                other = "" if same_settings else ", from runs of other agent settings"
+                return seconds / total, where + other
     return None
 
 
