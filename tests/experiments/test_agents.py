@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 
 from contextrl.analysis.scores import gap_statistics
+from contextrl.cli import main as cli_main
 from contextrl.experiments import executors, expand, run_experiment
-from contextrl.experiments.commands import main as commands_main
 from contextrl.experiments.reports import run_cells
 
 PPO_OPTIONS = {"total_timesteps": 2048, "num_envs": 4, "num_steps": 64, "hidden_sizes": [16, 16]}
@@ -108,21 +108,21 @@ def test_cli_run_report_and_resume(tmp_path, capsys):
         "--max-chunks",
         "1",
     ]
-    assert commands_main(argv) == 0
+    assert cli_main(argv) == 0
     assert "contextrl run --resume" in capsys.readouterr().out
-    assert commands_main(["run", "--resume", str(out), "--quiet"]) == 0
+    assert cli_main(["run", "--resume", str(out), "--quiet"]) == 0
     results = pd.read_parquet(out / "results" / "chunk-0001.parquet")
     lengths = results["ctx.length"].to_numpy()
     assert np.all((lengths >= 0.1) & (lengths <= 1.0))
     (out / "report.html").unlink()
-    assert commands_main(["report", str(out)]) == 0
+    assert cli_main(["report", str(out)]) == 0
     assert (out / "report.html").exists()
 
 
 def test_cli_refuses_bad_input_with_one_line(tmp_path, capsys):
-    assert commands_main(["run", "visibility", "--env", "Nope", "--root", str(tmp_path)]) == 2
+    assert cli_main(["run", "visibility", "--env", "Nope", "--root", str(tmp_path)]) == 2
     assert "unknown environment 'Nope'" in capsys.readouterr().err
-    assert commands_main(["run", "sensitivity", "--vary", "wheels", "--root", str(tmp_path)]) == 2
+    assert cli_main(["run", "sensitivity", "--vary", "wheels", "--root", str(tmp_path)]) == 2
     assert "wheels" in capsys.readouterr().err
-    assert commands_main(["report", str(tmp_path / "missing")]) == 2
+    assert cli_main(["report", str(tmp_path / "missing")]) == 2
     assert not list(tmp_path.iterdir())

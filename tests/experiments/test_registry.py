@@ -13,8 +13,8 @@ from contextrl.agents import (
     registered_agents,
     sac,
 )
+from contextrl.cli import main as cli_main
 from contextrl.experiments import SpecError, parse_spec
-from contextrl.experiments.commands import main as commands_main
 
 
 def test_registry_lists_agents_and_refuses_mismatches():
@@ -55,7 +55,7 @@ def test_user_registered_agent_runs_a_protocol_from_the_cli(tmp_path):
     out = tmp_path / "run"
     argv = ["run", "optimality_gap", "--agent", "tiny_ppo", "--seeds", "1", "--out", str(out)]
     argv += ["--set", "num_contexts=2", "--max-steps", "30", "--episodes", "1", "--quiet"]
-    assert commands_main(argv) == 0
+    assert cli_main(argv) == 0
     curves = pd.concat(pd.read_parquet(p) for p in (out / "curves").glob("*.parquet"))
     assert curves["step"].max() == 512  # the registered defaults were used
     html = (out / "report.html").read_text()
@@ -69,7 +69,7 @@ def test_sac_runs_the_sensitivity_protocol_from_the_cli(tmp_path):
     argv += ["--max-steps", "20", "--episodes", "1", "--out", str(out), "--quiet"]
     for option in ("learning_starts=100", "batch_size=16", "log_every=100", "hidden_sizes=[8]"):
         argv += ["--agent-option", option]
-    assert commands_main(argv) == 0
+    assert cli_main(argv) == 0
     results = pd.read_parquet(next((out / "results").glob("*.parquet")))
     assert sorted(results["magnitude"]) == [0.5, 1.0]
     assert results["ctx.g"].tolist() == [10.0, 5.0]  # the shared default context, then A = 0.5
@@ -90,7 +90,7 @@ def test_sac_on_a_host_environment_runs_the_papers_visibility_setting(tmp_path):
     argv += ["--set", "num_train_contexts=2", "--set", "num_test_contexts=3", "--out", str(out)]
     for option in ("learning_starts=40", "batch_size=8", "log_every=40", "hidden_sizes=[8]"):
         argv += ["--agent-option", option]
-    assert commands_main(argv) == 0
+    assert cli_main(argv) == 0
     results = pd.read_parquet(out / "results" / "chunk-0000.parquet")
     viscosity = results["ctx.viscosity"].to_numpy()
     assert len(results) == 3 and ((viscosity >= 0) & (viscosity <= 1)).all()

@@ -584,21 +584,3 @@ def add_eval(subparsers) -> None:
     parser.add_argument("--episodes", type=count, help="episodes per context (the run's)")
     parser.add_argument("--name", help="name of this evaluation (eval-1, eval-2, …)")
     parser.set_defaults(handler=eval_command)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Standalone entry (``python -m contextrl.experiments.commands``) with the same subcommands."""
-    parser = argparse.ArgumentParser(prog="contextrl")
-    subparsers = parser.add_subparsers(dest="command", required=True)
-    add_run(subparsers)
-    add_report(subparsers)
-    args = parser.parse_args(argv)
-    try:
-        return args.handler(args)
-    except ValueError as error:
-        print(f"contextrl {args.command}: error: {error}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())
