@@ -14,9 +14,9 @@ import pandas as pd
 import pytest
 import yaml
 
+from contextrl.cli import main as cli_main
 from contextrl.experiments import SpecError, parse_spec
 from contextrl.experiments.commands import add_run, spec_from_args
-from contextrl.experiments.commands import main as commands_main
 from contextrl.experiments.plan import expand
 from tests.helpers.report_tables import check_report
 
@@ -149,7 +149,7 @@ def pb2_runs(tmp_path_factory):
         argv += ["--max-steps", "50", "--episodes", "2"]
         printed = io.StringIO()
         with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
-            assert commands_main(argv) == 0
+            assert cli_main(argv) == 0
         (out.parent / "terminal.txt").write_text(printed.getvalue())
         runs.append(out)
     return runs
