@@ -1,8 +1,9 @@
-"""The built package works on its own: the wheel and the sdist build, and the wheel, installed with
+"""The package beside other versions: the wheel and the sdist build, and the wheel, installed with
 ``[agents,experiments]`` into a fresh virtual environment beside an older optax than the one the
 test suite pins (a version the package's range allows), runs the main job and lists the paper's
 figures from outside the checkout, with its package data (specs, the environment index, the RNA
-targets) inside the wheel; the figures of the simulators not installed name the extra they need."""
+targets) inside the wheel; the figures of the simulators not installed name the extra they need. And
+the quick tier passes with the oldest core versions the package allows."""
 
 from __future__ import annotations
 
@@ -21,6 +22,9 @@ from tests.helpers import ROOT
 pytestmark = pytest.mark.slow
 
 OLDER_OPTAX = "0.2.6"  # the package allows optax>=0.2.6,<0.3; constraints.txt pins 0.2.8
+# The oldest core versions the package (and JAX 0.10.2, which needs scipy>=1.14 and ml_dtypes>=0.5)
+# allows, at their last patch release
+OLDEST_CORE = {"numpy": "2.0.2", "scipy": "1.14.1", "ml_dtypes": "0.5.0"}
 
 
 def _run(*command, cwd: Path, env: dict | None = None) -> str:
@@ -81,3 +85,23 @@ def test_the_wheel_runs_the_main_job_in_a_fresh_environment(tmp_path):
     assert 'the dmc family, whose simulator is not installed: pip install "contextrl[dmc]"' in (
         listing
     )
+
+
+def test_the_quick_tier_passes_with_the_oldest_core_versions_allowed(tmp_path):
+    """numpy, scipy and ml_dtypes at the lower bounds the package declares (pyproject.toml) and JAX
+    needs, put first on the path of the suite's own environment: the quick tier passes."""
+    declared = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    for name in ("numpy", "scipy"):
+        lower = re.search(rf'"{name}>=([\d.]+)', declared).group(1)
+        assert OLDEST_CORE[name].startswith(lower + "."), (name, lower)
+    older = tmp_path / "older"
+    pins = [f"{name}=={version}" for name, version in OLDEST_CORE.items()]
+    _run(sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", older, *pins,
+         cwd=tmp_path)  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(older)}
+    found = _run(sys.executable, "-c", "import numpy, scipy; print(numpy.__version__, scipy.__version__)",
+                 cwd=tmp_path, env=env)  # fmt: skip
+    assert found.split() == [OLDEST_CORE["numpy"], OLDEST_CORE["scipy"]]
+    out = _run(sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "quick",
+               "-n", "2", cwd=ROOT, env=env)  # fmt: skip
+    assert re.search(r"\d+ passed", out), out
