@@ -44,6 +44,8 @@ from contextrl.agents.validation import (
     check_positive,
     flat_observation_size,
 )
+from contextrl.context.curricula import Curriculum, Feedback
+from contextrl.core.contextual import ContextualEnv
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,7 +215,8 @@ def _learner(config: PPOConfig, nets: _Networks):
 
     ``learn(params, opt_state, rollout, last_value, key)`` takes a rollout of arrays shaped
     (num_steps, num_envs, ...): observations, context vectors, actions, log-probabilities, values,
-    rewards (time-limit cuts already bootstrapped) and episode ends.
+    rewards (time-limit cuts already bootstrapped) and episode ends; it also returns the rollout's
+    advantages (what a curriculum scores contexts by).
     """
     num_envs, num_steps = config.num_envs, config.num_steps
     minibatch_size = num_envs * num_steps // config.num_minibatches
@@ -301,58 +304,135 @@ def _learner(config: PPOConfig, nets: _Networks):
         (params, opt_state, key), losses = jax.lax.scan(
             epoch, (params, opt_state, key), None, config.update_epochs
         )
-        return params, opt_state, key, losses
+        return params, opt_state, key, losses, advantages
 
     return optimizer, value, learn
 
 
 def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, *agent_inputs(config, env, train_contexts, "PPO", host=False))
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable).
+
+    ``train_contexts`` takes every form of ``contexts=`` or a curriculum
+    (:mod:`contextrl.context.curricula`): then each rollout draws from the curriculum's current
+    distribution, the curriculum is updated after each update from the rollout's per-context returns,
+    advantages and start values, and ``metrics["curriculum"]`` holds its distribution per update.
+    """
+    curriculum = train_contexts if isinstance(train_contexts, Curriculum) else None
+    seen = curriculum.train_contexts if curriculum else train_contexts
+    nets = _networks(config, *agent_inputs(config, env, seen, "PPO", host=False))
     space = env.context_space
+    if curriculum:
+        if curriculum.space is not space:
+            raise ConfigError(
+                f"the curriculum's contexts belong to {curriculum.space.context_class.__name__}, "
+                f"but {env.name} uses {env.context_type.__name__}"
+            )
+        num_contexts = curriculum.num_ids
+    else:
+        build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+        num_contexts = num_context_ids(env, train_contexts)
     num_envs, num_steps = config.num_envs, config.num_steps
     num_updates = config.num_updates
     optimizer, value, learn = _learner(config, nets)
     progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
+    context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
+
+    def start_values(params, key):
+        """The critic's value of each pool member's start state (the same start draw every update)."""
+
+        def one(ctx, member):
+            _, start = env.reset(jax.random.fold_in(key, member), ctx)
+            return value(params, start.obs, nets.context.vector(space, ctx))
+
+        pool = curriculum.pool
+        return jax.vmap(one)(pool, jnp.arange(len(pool)))
+
+    def feedback(params, log, advantages, context_ids, key) -> Feedback:
+        ended = log.context_count
+        slot = jnp.where(context_ids >= 0, context_ids, num_contexts).ravel()
+        positive = jnp.maximum(advantages, 0.0).ravel()
+        score_sum = jnp.zeros((num_contexts,)).at[slot].add(positive, mode="drop")
+        steps = jnp.zeros((num_contexts,)).at[slot].add(1.0, mode="drop")
+        values = (
+            start_values(params, key)
+            if curriculum.needs_start_values
+            else jnp.full((num_contexts,), jnp.nan)
+        )
+        return Feedback(
+            returns=jnp.where(ended > 0, log.context_sum / jnp.maximum(ended, 1), jnp.nan),
+            episodes=ended,
+            scores=jnp.where(steps > 0, score_sum / jnp.maximum(steps, 1.0), jnp.nan),
+            start_values=values,
+        )
 
     def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
-        cenv = build_env(contexts)
+        if curriculum and contexts is not None:
+            raise ConfigError(
+                "train(key, contexts): the agent trains under a curriculum, which chooses its "
+                "contexts itself; make one train function per curriculum instead"
+            )
         key, init_key, reset_key = jax.random.split(key, 3)
+        schedule = curriculum.init() if curriculum else None
+        cenv = (
+            ContextualEnv(env, curriculum.provider(schedule)) if curriculum else build_env(contexts)
+        )
         if params is None:  # given params: continue training them (population-based tuning)
             params = _init_params(nets, config, init_key)
         opt_state = optimizer.init(params)
         env_state, timestep = cenv.reset_copies(reset_key, num_envs)
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
-        context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
 
-        def env_step(carry, _):
+        def env_step(cenv, carry):
             params, env_state, obs, log, step, key = carry
             key, action_key = jax.random.split(key)
             context_vector = context_of(env_state.context)
             action, log_prob = _sample(nets, params, obs, context_vector, action_key)
             state_value = value(params, obs, context_vector)
+            context_id = env_state.context_id
             env_state, timestep = cenv.step_copies(env_state, _env_action(nets, action))
             step = step + num_envs
             reward = _time_limit_reward(value, params, timestep, context_vector, config.gamma)
             log = log.record(timestep.reward, timestep.done, timestep.info["context_id"], step)
             transition = (obs, context_vector, action, log_prob, state_value, reward, timestep.done)
-            return (params, env_state, timestep.obs, log, step, key), transition
+            return (params, env_state, timestep.obs, log, step, key), (transition, context_id)
 
         def update(carry, period):
-            params, opt_state, env_state, obs, log, step, key = carry
-            (params, env_state, obs, log, step, key), rollout = jax.lax.scan(
-                env_step, (params, env_state, obs, log, step, key), None, num_steps
+            params, opt_state, env_state, obs, log, step, key, schedule = carry
+            if curriculum:
+                cenv_now = ContextualEnv(env, curriculum.provider(schedule))
+            else:
+                cenv_now = cenv
+            (params, env_state, obs, log, step, key), (rollout, context_ids) = jax.lax.scan(
+                lambda carry, _: env_step(cenv_now, carry),
+                (params, env_state, obs, log, step, key),
+                None,
+                num_steps,
             )
             last_value = value(params, obs, context_of(env_state.context))
-            params, opt_state, key, losses = learn(params, opt_state, rollout, last_value, key)
+            params, opt_state, key, losses, advantages = learn(
+                params, opt_state, rollout, last_value, key
+            )
+            if curriculum:
+                told = feedback(params, log, advantages, context_ids, reset_key)
+                trace = curriculum.trace(schedule)
+                schedule = curriculum.update(schedule, told)
             log, row = log.close_row(period, step, progress)
             row["actor_loss"], row["value_loss"], row["entropy"] = (x.mean() for x in losses)
-            return (params, opt_state, env_state, obs, log, step, key), row
+            if curriculum:
+                row["curriculum"] = trace
+            return (params, opt_state, env_state, obs, log, step, key, schedule), row
 
-        carry = (params, opt_state, env_state, timestep.obs, log, jnp.zeros((), jnp.int32), key)
-        (params, _, _, _, log, _, _), metrics = jax.lax.scan(update, carry, jnp.arange(num_updates))
+        carry = (
+            params,
+            opt_state,
+            env_state,
+            timestep.obs,
+            log,
+            jnp.zeros((), jnp.int32),
+            key,
+            schedule,
+        )
+        (params, _, _, _, log, *_), metrics = jax.lax.scan(update, carry, jnp.arange(num_updates))
         return TrainResult(params, {**metrics, "episodes": log.episodes()})
 
     return train
@@ -419,7 +499,7 @@ class _HostLearner(HostLearner):
         stacked = tuple(np.stack(column) for column in zip(*self._rollout, strict=True))
         self._rollout = []
         last_value = self._value(self.params, *self._next)
-        self.params, self._opt_state, self._key, self._losses = self._learn(
+        self.params, self._opt_state, self._key, self._losses, _ = self._learn(
             self.params, self._opt_state, stacked, last_value, self._key
         )
 

@@ -60,9 +60,8 @@ class Uniform:
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:
         if feature.kind == "int":
-            return jax.random.randint(
-                key, (n,), int(math.ceil(self.low)), int(math.floor(self.high)) + 1
-            )
+            low, high = jnp.ceil(self.low), jnp.floor(self.high) + 1
+            return jax.random.randint(key, (n,), low.astype(jnp.int32), high.astype(jnp.int32))
         return jax.random.uniform(key, (n,), minval=self.low, maxval=self.high)
 
 
@@ -83,7 +82,7 @@ class LogUniform:
         _inside(feature, self.low, self.high, "LogUniform")
 
     def sample(self, key, n: int, feature: Feature) -> jax.Array:
-        u = jax.random.uniform(key, (n,), minval=math.log(self.low), maxval=math.log(self.high))
+        u = jax.random.uniform(key, (n,), minval=jnp.log(self.low), maxval=jnp.log(self.high))
         value = jnp.exp(u)
         return jnp.round(value) if feature.kind == "int" else value
 
@@ -218,6 +217,15 @@ class RelativeUniform:
     def sample(self, key, n: int, feature: Feature) -> jax.Array:
         return self._absolute(feature).sample(key, n, feature)
 
+
+# Their parameters are pytree data, so a compiled loop can carry them and change them between updates
+# (a curriculum) without compiling again; ``check`` runs wherever they are concrete.
+for _continuous in (Uniform, LogUniform, Normal):
+    jax.tree_util.register_dataclass(
+        _continuous,
+        data_fields=[f.name for f in dataclasses.fields(_continuous)],
+        meta_fields=[],
+    )
 
 Distribution = Uniform | LogUniform | Normal | Categorical | Constant | Scaled | RelativeUniform
 DISTRIBUTIONS = (Uniform, LogUniform, Normal, Categorical, Constant, Scaled, RelativeUniform)

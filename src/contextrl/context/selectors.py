@@ -129,7 +129,12 @@ class Resample:
     uses_key = True
 
     def __post_init__(self):
-        object.__setattr__(self, "spec", check_spec(self.space, self.spec))
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(self.spec)):
+            # Parameters a compiled loop carries (a curriculum's): checked where they were concrete.
+            spec = {self.space.resolve(name): d for name, d in self.spec.items()}
+        else:
+            spec = check_spec(self.space, self.spec)
+        object.__setattr__(self, "spec", spec)
         if not self.spec:
             raise ContextError("a resampling spec needs at least one feature distribution")
 
