@@ -141,6 +141,18 @@ def make(env_id: str, step_api: str = "0.x", **kwargs: Any) -> tuple[Environment
     """``(env, default_params)`` for a registered JAX environment (contextrl id, CARL alias or gymnax id
     such as ``"CartPole-v1"``). ``step_api``: "0.x" (five values) or "1.0" (six). Other keyword
     arguments go to ``crl.make`` (``max_steps``, ``obs_context_features``, ...)."""
+    env = Environment(make_core(env_id, **kwargs), step_api)
+    return env, env.default_params
+
+
+def make_core(env_id: str, **kwargs: Any) -> Env:
+    """The core environment behind a gymnax face for any of ``make``'s ids."""
+    return make_env(core_id(env_id), **kwargs)
+
+
+def core_id(env_id: str) -> str:
+    """contextrl's id of a JAX environment (from its id, a CARL alias or a gymnax id); KeyError for an
+    unknown one, ValueError for one that steps on the host."""
     try:
         env_spec = spec(env_id)
     except KeyError:
@@ -153,8 +165,7 @@ def make(env_id: str, step_api: str = "0.x", **kwargs: Any) -> tuple[Environment
             f"{env_spec.id} steps on the host, outside JAX, so it has no gymnax face; "
             f"JAX environments: {_jax_ids()}"
         )
-    env = Environment(make_env(env_spec.id, **kwargs), step_api)
-    return env, env.default_params
+    return env_spec.id
 
 
 # gymnax's ids of the environments both libraries have, spelled as gymnax spells them
