@@ -82,6 +82,8 @@ def test_params_carry_the_time_limit_and_read_features_by_name():
         params.replace(length=50.0)
     with pytest.raises(ValueError, match="max_steps_in_episode must be an integer"):
         params.replace(max_steps_in_episode=0)
+    with pytest.raises(ValueError, match="max_steps_in_episode must be an integer"):
+        params.replace(max_steps_in_episode=2.5)
     with pytest.raises(AttributeError, match="unknown context feature 'colour'"):
         params.colour  # noqa: B018
 

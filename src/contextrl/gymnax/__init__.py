@@ -20,7 +20,8 @@ holds ``terminated``, ``truncated``, ``discount`` (0 at a termination, else 1) a
 ``final_observation`` (the last observation of the episode that ended), as in gymnax.
 
 Where it differs from gymnax: the time limit is static configuration (``make(id, max_steps=...)``), not
-``params.max_steps_in_episode``; derived constants (CartPole's ``total_mass``, ``polemass_length``) are
+``params.max_steps_in_episode`` (``contextrl.gymnax.v1`` has gymnax 1.0's, and its states have gymnax's
+field names); derived constants (CartPole's ``total_mass``, ``polemass_length``) are
 not params but computed from the context in every step, so they can never go stale. The spaces are
 gymnax's own classes when gymnax is installed (so trainers' ``isinstance(space, spaces.Box)`` checks
 pass), contextrl's otherwise (with gymnax's ``n``, ``shape``, ``dtype``, ``low``, ``high``, ``sample(key)``).
@@ -66,7 +67,7 @@ class Environment:
         self.step = jax.jit(self._step)
 
     def __repr__(self) -> str:
-        return f"contextrl.gymnax.Environment({self.env!r})"
+        return f"{type(self).__module__}.Environment({self.env!r})"
 
     @property
     def default_params(self):

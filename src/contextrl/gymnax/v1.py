@@ -49,7 +49,8 @@ DERIVED = {
 def time_limit(value: Any) -> jax.Array:
     """``max_steps_in_episode`` as the int32 the step counter is, checked where it is concrete."""
     if not isinstance(value, jax.core.Tracer):
-        if isinstance(value, bool) or not 1 <= int(np.asarray(value)) <= MAX_STEP_COUNT:
+        array = np.asarray(value)
+        if array.dtype.kind not in "iu" or not np.all((array >= 1) & (array <= MAX_STEP_COUNT)):
             raise ValueError(
                 f"max_steps_in_episode must be an integer in [1, {MAX_STEP_COUNT:,}], got {value!r}"
             )
@@ -321,10 +322,12 @@ __all__ = [
     "GYMNAX_IDS",
     "AcrobotState",
     "CartPoleState",
+    "Dict",
     "EnvParams",
     "Environment",
     "MountainCarState",
     "PendulumState",
+    "State",
     "make",
     "register",
     "registered_envs",
