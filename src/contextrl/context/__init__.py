@@ -1,5 +1,6 @@
 """The context model: feature declarations, spaces, distributions, sampling, selectors, observation."""
 
+from contextrl.context.changes import Piecewise, RandomWalk, Redraw, StepFunction
 from contextrl.context.distributions import (
     Categorical,
     Constant,
@@ -49,12 +50,16 @@ __all__ = [
     "FromSet",
     "LogUniform",
     "Normal",
+    "Piecewise",
     "RandomSelector",
+    "RandomWalk",
+    "Redraw",
     "RelativeUniform",
     "Resample",
     "RoundRobin",
     "Scaled",
     "Static",
+    "StepFunction",
     "Uniform",
     "check_spec",
     "context_type",

@@ -15,6 +15,11 @@ index tells the copies apart), so the same seed and actions give the same trajec
 Episode ``g``'s key is ``fold_in(key, g)``; its start draws (selection, start state) come from that key
 and step ``t``'s draws from ``fold_in(episode_key, 2**32 - t)`` (counters no start draw reaches), so a
 copy needs no key split per step, and a deterministic environment draws nothing between resets.
+
+``changes`` (:mod:`contextrl.context.changes`) moves the context within an episode: step ``t`` runs
+under ``changes.apply(key, t, context)`` and the state keeps that context, so every face and every
+context observation sees the current value. Its draws come from ``fold_in(step key, 2**32 - 1)``, so
+the environment's own draws are those of the same run without changes.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from contextrl.context.changes import Change, bind
 from contextrl.context.features import ContextError
 from contextrl.context.schedule import resolve_contexts
 from contextrl.context.selectors import Provider
@@ -81,10 +87,12 @@ def choose_context(provider: Provider, run_key_bits, episode) -> tuple[Any, jax.
 
 @dataclasses.dataclass(frozen=True)
 class ContextualEnv:
-    """``env`` with a provider that picks the context of each new episode."""
+    """``env`` with a provider that picks the context of each new episode, and optionally
+    ``changes`` that move it within the episode."""
 
     env: Env
     provider: Provider
+    changes: Change | None = None
 
     def __post_init__(self):
         if self.provider.space is not self.env.context_space:
@@ -92,6 +100,8 @@ class ContextualEnv:
                 f"the contexts belong to {self.provider.space.context_class.__name__}, "
                 f"but {self.env.name} uses {self.env.context_type.__name__}"
             )
+        if self.changes is not None:
+            object.__setattr__(self, "changes", bind(self.env, self.changes))
 
     @property
     def observation_space(self):
@@ -141,21 +151,27 @@ class ContextualEnv:
         )
 
     def advance(self, state: ContextualState, action) -> tuple[ContextualState, TimeStep]:
-        """One step of the current episode, without restarting it when it ends."""
+        """One step of the current episode (under its changed context), without restarting it."""
+        changes_need_key = self.changes is not None and self.changes.uses_key
         step_key = None
-        if self.env.steps_need_key:
+        if self.env.steps_need_key or changes_need_key:
             episode = episode_key(state.key, state.episode)
             step = jnp.asarray(state.env_state.time + 1, jnp.uint32)
             step_key = jax.random.fold_in(episode, jnp.uint32(0) - step)  # 2**32 - t
-        env_state, timestep = self.env.advance(step_key, state.env_state, action, state.context)
+        context = state.context
+        if self.changes is not None:
+            change_key = jax.random.fold_in(step_key, 2**32 - 1) if changes_need_key else None
+            context = self.changes.apply(change_key, state.env_state.time + 1, context)
+        env_key = step_key if self.env.steps_need_key else None
+        env_state, timestep = self.env.advance(env_key, state.env_state, action, context)
         info = {
             **timestep.info,
             "context_id": state.context_id,
             "next_context_id": state.context_id,
         }
-        return dataclasses.replace(state, env_state=env_state), dataclasses.replace(
-            timestep, info=info
-        )
+        return dataclasses.replace(
+            state, env_state=env_state, context=context
+        ), dataclasses.replace(timestep, info=info)
 
     @staticmethod
     def _settle(done, advanced, timestep, restarted, start) -> tuple[ContextualState, TimeStep]:
@@ -231,9 +247,15 @@ def make_provider(env: Env, contexts: Any, selector: str | Callable | None = Non
     return resolve_contexts(env.context_space, contexts, selector).provider
 
 
-def with_contexts(env: Env, contexts: Any, selector: str | Callable | None = None) -> ContextualEnv:
+def with_contexts(
+    env: Env,
+    contexts: Any,
+    selector: str | Callable | None = None,
+    changes: Change | None = None,
+) -> ContextualEnv:
     """``env`` whose every episode takes its context from ``contexts`` (see :func:`make_provider`).
 
     ``selector``: "round_robin" (the default), "random", "static" or ``fn(key, episode, n) -> index``.
+    ``changes``: how the context moves within an episode (:mod:`contextrl.context.changes`).
     """
-    return ContextualEnv(env, make_provider(env, contexts, selector))
+    return ContextualEnv(env, make_provider(env, contexts, selector), changes)
