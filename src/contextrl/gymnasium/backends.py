@@ -19,7 +19,6 @@ import gymnasium
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import lax
 from jax.sharding import SingleDeviceSharding
 
 from contextrl.context.observation import ContextObservation
@@ -28,15 +27,16 @@ from contextrl.context.selectors import FromSet
 from contextrl.core.contextual import ContextualEnv, choose_context
 from contextrl.core.env import Env
 from contextrl.core.spaces import Discrete
-from contextrl.gymnasium.packing import Packer
-
-
-def _float_bits(x: jax.Array) -> jax.Array:
-    return lax.bitcast_convert_type(jnp.asarray(x, jnp.float32), jnp.uint32).ravel()
-
-
-def _bits_float(bits: jax.Array) -> jax.Array:
-    return lax.bitcast_convert_type(bits, jnp.float32)
+from contextrl.gymnasium.frames import (
+    Given,
+    HostStart,
+    Run,
+    Started,
+    StartRequest,
+    Stepped,
+    key_data,
+)
+from contextrl.gymnasium.packing import PackedProgram, Packer
 
 
 def cpu_jit(function: Callable) -> Callable:
@@ -110,14 +110,14 @@ def shared_program(key: Hashable | None, build: Callable[[], Any]) -> Any:
     return _PROGRAM_CACHE[key]
 
 
-def program_layout(env: Env, schedule: ContextSchedule) -> tuple[Packer, dict]:
-    """The packer of the contextual state and the environment's step facts of a start (shapes only):
-    the layout every compiled program of ``env`` under ``schedule``, single or vector, reads and writes."""
+def state_packer(env: Env, schedule: ContextSchedule) -> Packer:
+    """The packer of the contextual state: the carry every compiled program of ``env`` under
+    ``schedule``, single or vector, reads and writes."""
     table = context_table(schedule)
-    state, started = jax.eval_shape(
+    state, _ = jax.eval_shape(
         lambda key: contextual_env(env, schedule, table).reset(key), jax.random.key(0)
     )
-    return Packer(state), env_step_info(started)
+    return Packer(state)
 
 
 def observation_spaces(env: Env) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Box]:
@@ -215,81 +215,76 @@ def _numbers(action: Any, kinds: str) -> np.ndarray | None:
     return values if values.dtype.kind in kinds else None
 
 
-class JaxPrograms:
-    """One copy of the core contextual env, compiled: each call one uint32 vector in, one out.
+def _floats(x: Any) -> jax.Array:
+    """``x`` flat in float32, as the host reads observations and context vectors."""
+    return jnp.ravel(jnp.asarray(x, jnp.float32))
 
-    ``begin``/``restart`` (and ``*_with``, which take the episode's context) return the packed state,
-    the first observation, the context vector, the environment's step facts (``Env.step_info``) and the
-    context id; ``advance`` one step without a restart (a gymnasium single env restarts only when asked)
-    returns the packed state, observation, reward, step facts and the two end flags.
+
+class JaxPrograms:
+    """One copy of the core contextual env, compiled: each call one uint32 vector in, one out
+    (:class:`PackedProgram`).
+
+    ``begin`` takes a :class:`Run`, ``restart`` the packed state; each returns :class:`Started`
+    (``*_with`` also take the episode's :class:`Given` context). ``advance`` takes (packed state,
+    action) and steps without a restart (a gymnasium single env restarts only when asked), returning
+    :class:`Stepped`.
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule):
         self.env = env
         self.schedule = schedule
         self.space = env.context_space
-        self.discrete = isinstance(env.action_space, Discrete)
-        self.packer, started_info = program_layout(env, schedule)
-        self.info_packer = Packer(started_info)
-        self.begin = cpu_jit(self._begin_fn)
-        self.begin_with = cpu_jit(self._begin_with_fn)
-        self.restart = cpu_jit(self._restart_fn)
-        self.restart_with = cpu_jit(self._restart_with_fn)
-        self.advance = cpu_jit(self._advance_fn)
+        self.packer = state_packer(env, schedule)
+        table, carry = context_table(schedule), np.zeros(self.packer.size, np.uint32)
+        run = Run(key_data(), np.uint32(0), np.uint32(0))
+        given = Given(np.zeros(len(self.space), np.float32), np.int32(0))
+        discrete = isinstance(env.action_space, Discrete)
+        action = np.int32(0) if discrete else np.zeros(env.action_space.shape, np.float32)
+        self.begin = PackedProgram(self._begin, run, table, jit=cpu_jit)
+        self.begin_with = PackedProgram(self._begin_with, (run, given), table, jit=cpu_jit)
+        self.restart = PackedProgram(self._restart, carry, table, jit=cpu_jit)
+        self.restart_with = PackedProgram(self._restart_with, (carry, given), table, jit=cpu_jit)
+        self.advance = PackedProgram(self._advance, (carry, action), jit=cpu_jit)
 
-    def _started(self, state, timestep):
-        return jnp.concatenate(
-            [
-                self.packer.pack(state),
-                _float_bits(timestep.obs),
-                _float_bits(self.space.to_array(state.context)),
-                self.info_packer.pack(env_step_info(timestep)),
-                lax.bitcast_convert_type(state.context_id, jnp.uint32)[None],
-            ]
+    def _started(self, state, timestep) -> Started:
+        return Started(
+            self.packer.pack(state),
+            _floats(timestep.obs),
+            _floats(self.space.to_array(state.context)),
+            state.context_id,
+            env_step_info(timestep),
         )
 
-    def _override(self, words):
-        """(context, context id) written after the key or carry: F context floats, then the id."""
-        return self.space.from_array(_bits_float(words[:-1])), words[-1].astype(jnp.int32)
-
-    def _begin_fn(self, head, table):
+    def _begin(self, run: Run, table) -> Started:
         cenv = contextual_env(self.env, self.schedule, table)
-        return self._started(*cenv.reset(head[:2], head[2], head[3]))
+        return self._started(*cenv.reset(run.key, run.episode, run.copies))
 
-    def _begin_with_fn(self, words, table):
-        cenv = contextual_env(self.env, self.schedule, table)
-        context, context_id = self._override(words[4:])
-        return self._started(*cenv.reset(words[:2], words[2], words[3], context, context_id))
+    def _begin_with(self, request: tuple[Run, Given], table) -> Started:
+        (run, given), cenv = request, contextual_env(self.env, self.schedule, table)
+        context = self.space.from_array(given.context)
+        return self._started(
+            *cenv.reset(run.key, run.episode, run.copies, context, given.context_id)
+        )
 
-    def _restart_fn(self, carry, table):
+    def _restart(self, carry, table) -> Started:
         cenv = contextual_env(self.env, self.schedule, table)
         return self._started(*cenv.restart(self.packer.unpack(carry)))
 
-    def _restart_with_fn(self, words, table):
-        cenv = contextual_env(self.env, self.schedule, table)
-        size = self.packer.size
-        context, context_id = self._override(words[size:])
-        state = self.packer.unpack(words[:size])
-        return self._started(*cenv.restart(state, context, context_id))
+    def _restart_with(self, request: tuple[Any, Given], table) -> Started:
+        (carry, given), cenv = request, contextual_env(self.env, self.schedule, table)
+        context = self.space.from_array(given.context)
+        return self._started(*cenv.restart(self.packer.unpack(carry), context, given.context_id))
 
-    def _advance_fn(self, words):
-        size = self.packer.size
-        state = self.packer.unpack(words[:size])
-        if self.discrete:
-            action = lax.bitcast_convert_type(words[size], jnp.int32)
-        else:
-            action = _bits_float(words[size:]).reshape(self.env.action_space.shape)
-        cenv = ContextualEnv(self.env, self.schedule.provider)  # advancing never selects
-        state, timestep = cenv.advance(state, action)
-        flags = jnp.stack([timestep.terminated, timestep.truncated]).astype(jnp.uint32)
-        return jnp.concatenate(
-            [
-                self.packer.pack(state),
-                _float_bits(timestep.obs),
-                _float_bits(timestep.reward),
-                self.info_packer.pack(env_step_info(timestep)),
-                flags,
-            ]
+    def _advance(self, request: tuple[Any, Any]) -> Stepped:
+        (carry, action), cenv = request, ContextualEnv(self.env, self.schedule.provider)
+        state, timestep = cenv.advance(self.packer.unpack(carry), action)  # advancing never selects
+        return Stepped(
+            self.packer.pack(state),
+            _floats(timestep.obs),
+            jnp.asarray(timestep.reward, jnp.float32),
+            timestep.terminated,
+            timestep.truncated,
+            env_step_info(timestep),
         )
 
 
@@ -298,7 +293,6 @@ class JaxBackend:
     and the context observation are the core env's; the action rule is :func:`action_check`'s."""
 
     def __init__(self, env: Env, schedule: ContextSchedule):
-        self.space = env.context_space
         key = schedule.selection_key
         self.programs = shared_program(
             None if key is None else ("single", env, key), lambda: JaxPrograms(env, schedule)
@@ -308,48 +302,26 @@ class JaxBackend:
         self.action_space = env.action_space.to_gymnasium()
         self.check = action_check(self.action_space)
         self.flat_space, self.base_space = observation_spaces(env)
-        self.obs_size = int(np.prod(self.flat_space.shape))
         self.carry: np.ndarray | None = None
-        self.info_packer = self.programs.info_packer
         # The environment's facts of the last start or step (``Env.step_info``), for gymnasium's info.
         self._step_info: dict[str, Any] = {}
-        self._discrete = self.programs.discrete
-        action_words = 1 if self._discrete else int(np.prod(self.action_space.shape))
-        self._buffer = np.zeros(self.packer.size + action_words, np.uint32)
-        # Views and bound methods made once: per-step host work is a few NumPy calls.
-        self._size = self.packer.size
-        self._carry_slot = self._buffer[: self._size]
-        self._action_slot = self._buffer[self._size :]
+        # The step's input, filled in place through its fields: per-step host work is a few NumPy calls.
         self._advance = self.programs.advance
+        self._request, (self._carry_in, self._action_in) = self._advance.inputs.zeros_host()
+        self._stepped = self._advance.outputs.unpack_host
 
     # ---- host side ------------------------------------------------------------------------------------
-    def _unpack_start(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        size, features = self.packer.size, len(self.space)
-        self.carry = out[:size]
-        obs = out[size : size + self.obs_size].view(np.float32).copy()
-        context_start = size + self.obs_size
-        context_vector = out[context_start : context_start + features].view(np.float32).copy()
-        info_start = context_start + features
-        self._read_step_info(out[info_start : info_start + self.info_packer.size])
-        return obs, context_vector, int(out[-1].view(np.int32))
-
-    def _read_step_info(self, words: np.ndarray) -> None:
-        if self.info_packer.size:
-            self._step_info = info_to_host(self.info_packer.unpack_host(words))
+    def _start(self, program: PackedProgram, request: Any) -> tuple[np.ndarray, np.ndarray, int]:
+        started = program.outputs.unpack_host(
+            program(program.inputs.pack_host(request), self.table)
+        )
+        self.carry = started.carry
+        self._step_info = info_to_host(started.info)
+        return started.obs.copy(), started.context.copy(), int(started.context_id)
 
     def step_info(self) -> dict[str, Any]:
         """The environment's facts of the last start or step (``Env.step_info``)."""
         return self._step_info
-
-    @staticmethod
-    def _override_words(override: tuple[np.ndarray, int]) -> np.ndarray:
-        vector, context_id = override
-        return np.concatenate(
-            [
-                np.asarray(vector, np.float32).view(np.uint32),
-                np.array([context_id], np.int32).view(np.uint32),
-            ]
-        )
 
     def begin(
         self, key_bits: np.ndarray, copy: int, num_copies: int, override=None, rng=None
@@ -359,33 +331,26 @@ class JaxBackend:
         ``override``: (context vector, id) to run instead of the selector's choice. ``rng`` is for host
         simulators: every draw here comes from the key.
         """
-        head = np.concatenate([key_bits, np.array([copy, num_copies], np.uint32)])
+        run = Run(key_bits, copy, num_copies)
         if override is None:
-            return self._unpack_start(np.asarray(self.programs.begin(head, self.table)))
-        words = np.concatenate([head, self._override_words(override)])
-        return self._unpack_start(np.asarray(self.programs.begin_with(words, self.table)))
+            return self._start(self.programs.begin, run)
+        return self._start(self.programs.begin_with, (run, Given(*override)))
 
     def restart(self, override=None) -> tuple[np.ndarray, np.ndarray, int]:
         """The next episode of this copy (global episode + number of copies)."""
         if override is None:
-            return self._unpack_start(np.asarray(self.programs.restart(self.carry, self.table)))
-        words = np.concatenate([self.carry, self._override_words(override)])
-        return self._unpack_start(np.asarray(self.programs.restart_with(words, self.table)))
+            return self._start(self.programs.restart, self.carry)
+        return self._start(self.programs.restart_with, (self.carry, Given(*override)))
 
     def advance(self, action: Any) -> tuple[np.ndarray, float, bool, bool]:
-        checked = self.check(action)
-        if self._discrete:
-            self._action_slot[0] = checked
-        else:
-            self._action_slot[:] = checked.ravel().view(np.uint32)
-        self._carry_slot[:] = self.carry
-        out = np.asarray(self._advance(self._buffer))
-        size = self._size
-        self.carry = out[:size]
-        values = out.view(np.float32)
-        end = size + self.obs_size
-        self._read_step_info(out[end + 1 : end + 1 + self.info_packer.size])
-        return values[size:end].copy(), float(values[end]), bool(out[-2]), bool(out[-1])
+        self._action_in[...] = self.check(action)
+        self._carry_in[:] = self.carry
+        stepped = self._stepped(self._advance(self._request))
+        self.carry = stepped.carry
+        if stepped.info:
+            self._step_info = info_to_host(stepped.info)
+        obs, reward = stepped.obs.copy(), float(stepped.reward)
+        return obs, reward, bool(stepped.terminated), bool(stepped.truncated)
 
     def physics_and_context(self) -> tuple[Any, Any]:
         """The current physics state and context as NumPy values (for rendering)."""
@@ -431,22 +396,21 @@ class ScalarPhysics:
             raise TypeError(
                 f"{env.name}'s host path needs its physics state to be one float32 array"
             )
-        self._size = int(np.prod(physics.shape))
         self._transition = env.host_transition
         self._observe = env.host_observe
         self.state: list[float] = []
         self.context: Any = None
         self._values: types.SimpleNamespace | None = None  # the context as Python floats
 
-    def reset_physics(self, context: Any, started: np.ndarray) -> np.ndarray:
+    def reset_physics(self, context: Any, started: HostStart) -> np.ndarray:
         """Start an episode under ``context`` from the start state and observation that
         :class:`HostPrograms` drew; the first observation."""
         if context is not self.context:
             values = [float(getattr(context, name)) for name in self._names]
             self._values = types.SimpleNamespace(**dict(zip(self._names, values, strict=True)))
             self.context = context
-        self.state = started[: self._size].tolist()
-        return started[self._size :]
+        self.state = started.state.tolist()
+        return started.obs
 
     def step_physics(self, action: Any) -> tuple[list[float], float, bool]:
         """``(observation, reward, terminated)`` of one checked action, on Python floats."""
@@ -481,7 +445,9 @@ class HostPrograms:
         self.space = schedule.space
         self.obs_context = obs_context
         self.physics = physics  # the JAX env of scalar physics, or None for a HostEnv
-        self.start = cpu_jit(self._start)
+        zero = np.int32(0)
+        request = StartRequest(key_data(), zero, zero, zero, np.zeros(len(self.space), np.float32))
+        self.start = PackedProgram(self._start, request, context_table(schedule), jit=cpu_jit)
         self.extra = cpu_jit(self._extra)
 
     def _extra(self, vector, start_key_bits, time):
@@ -489,26 +455,25 @@ class HostPrograms:
         key = jax.random.fold_in(jax.random.wrap_key_data(start_key_bits), time)
         return self.obs_context.values(self.space, self.space.from_array(vector), key)
 
-    def _start(self, words, table):
-        """An episode's start in one uint32 vector: the context (the selector's or the one given) as
-        values and id, the start key's data, the first context observation and, for scalar physics,
-        the start state and observation."""
+    def _start(self, request: StartRequest, table) -> HostStart:
+        """An episode's start: the context (the selector's or the one given), its start key, the first
+        context observation and, for scalar physics, the start state and observation."""
         provider = schedule_provider(self.schedule, table)
-        chosen, chosen_id, start_key = choose_context(
-            provider, words[:2], words[2].astype(jnp.int32)
-        )
-        given = words[3] == 1
-        vector = jnp.where(given, _bits_float(words[5:]), self.space.to_array(chosen))
-        index = jnp.where(given, words[4].astype(jnp.int32), jnp.asarray(chosen_id, jnp.int32))
+        chosen, chosen_id, start_key = choose_context(provider, request.key, request.episode)
+        given = request.given == 1
+        vector = jnp.where(given, request.context, self.space.to_array(chosen))
+        index = jnp.where(given, request.context_id, jnp.asarray(chosen_id, jnp.int32))
         bits = jax.random.key_data(start_key)
-        parts = [_float_bits(vector), lax.bitcast_convert_type(index, jnp.uint32)[None], bits]
-        if not self.obs_context.hidden:
-            parts.append(_float_bits(self._extra(vector, bits, 0)))
-        if self.physics is not None:  # the env's own start state and first observation
-            context = self.space.from_array(vector)
-            state = self.physics.init(start_key, context)
-            parts += [_float_bits(state), _float_bits(self.physics.observe(state, context))]
-        return jnp.concatenate(parts)
+        hidden = self.obs_context.hidden
+        extra = jnp.zeros(0, jnp.float32) if hidden else _floats(self._extra(vector, bits, 0))
+        started = HostStart(_floats(vector), index, bits, extra)
+        if self.physics is None:
+            return started
+        context = self.space.from_array(vector)  # the env's own start state and first observation
+        state = self.physics.init(start_key, context)
+        return started._replace(
+            state=_floats(state), obs=_floats(self.physics.observe(state, context))
+        )
 
 
 class HostBackend:
@@ -553,17 +518,14 @@ class HostBackend:
             lambda: HostPrograms(schedule, obs_context, physics),
         )
         self._start_program, self._extra = programs.start, programs.extra
-        self._features = len(self.space)
-        self._extra_size = 0 if obs_context.hidden else len(obs_context.features)
-        # The start program's words: run key data, episode, 1 where a context is given, its id, values.
-        self._words = np.zeros(5 + self._features, np.uint32)
+        # The start program's input, filled in place through its fields.
+        self._words, self._request = programs.start.inputs.zeros_host()
         self._members: dict[int, Any] = {}  # the context objects of the set's members, built once
         self.time = 0
         self.context: Any = None
         self._run: tuple[np.ndarray, int, int] | None = None  # key bits, episode, number of copies
         self._rng: np.random.Generator | None = None
-        self._vector: np.ndarray | None = None
-        self._start_key: np.ndarray | None = None
+        self._started: HostStart | None = None  # the episode's start: context vector, start key…
         self._fixed_extra: np.ndarray | None = None  # the context observation when it has no noise
 
     def _context(self, vector: np.ndarray, index: int) -> Any:
@@ -590,26 +552,21 @@ class HostBackend:
 
     def _start(self, override) -> tuple[np.ndarray, np.ndarray, int]:
         key_bits, episode, _ = self._run
-        words = self._words
-        words[:2], words[2], words[3] = key_bits, episode, override is not None
+        request = self._request
+        request.key[:], request.episode[...] = key_bits, episode
+        request.given[...] = override is not None
         if override is not None:
-            words[4] = np.int32(override[1]).view(np.uint32)
-            words[5:] = np.asarray(override[0], np.float32).view(np.uint32)
-        out = np.asarray(self._start_program(words, self.table))
-        at = self._features  # the context values, its id, start key data, context observation…
-        vector = out[:at].view(np.float32)
-        index = int(out[at].view(np.int32))
-        self._start_key = out[at + 1 : at + 3]
-        end = at + 3 + self._extra_size
-        extra = out[at + 3 : end].view(np.float32)
-        self._vector = vector
-        self._fixed_extra = extra if self.obs_context.noise == 0 else None
-        self.context = self._context(vector, index)
+            request.context[:], request.context_id[...] = override
+        program = self._start_program
+        started = program.outputs.unpack_host(program(self._words, self.table))
+        self._started = started
+        self._fixed_extra = started.extra if self.obs_context.noise == 0 else None
+        index = int(started.context_id)
+        self.context = self._context(started.context, index)
         self.time = 0
         # Where the start state comes from: scalar physics' compiled start, a HostEnv's generator.
-        source = out[end:].view(np.float32) if self._keyed else self._rng
-        base_obs = self.simulator.reset_physics(self.context, source)
-        return self._observation(base_obs, extra), vector, index
+        base_obs = self.simulator.reset_physics(self.context, started if self._keyed else self._rng)
+        return self._observation(base_obs, started.extra), started.context, index
 
     def begin(self, key_bits, copy, num_copies, override=None, rng=None):
         """A new run's first episode (global episode ``copy``); ``rng`` seeds a ``HostEnv``'s starts."""
@@ -628,7 +585,8 @@ class HostBackend:
         extra = self._fixed_extra
         if extra is None:  # a noisy context observation: drawn anew at every step
             time = np.uint32(self.time)
-            extra = np.asarray(self._extra(self._vector, self._start_key, time))
+            started = self._started
+            extra = np.asarray(self._extra(started.context, started.start_key, time))
         return (
             self._observation(base_obs, extra),
             float(reward),

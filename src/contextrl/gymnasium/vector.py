@@ -33,8 +33,8 @@ from contextrl.gymnasium.backends import (
     contextual_env,
     env_step_info,
     observation_spaces,
-    program_layout,
     shared_program,
+    state_packer,
 )
 from contextrl.gymnasium.env import (
     ContextView,
@@ -46,17 +46,17 @@ from contextrl.gymnasium.env import (
     run_key_bits,
     split_observation,
 )
+from contextrl.gymnasium.frames import CopySteps, key_data
 from contextrl.gymnasium.host_vector import HostVectorEnv
+from contextrl.gymnasium.packing import Packer
 
 
 class VectorPrograms:
     """The core's ``reset_copies`` and ``step_copies`` of ``num_envs`` copies, compiled.
 
     The state stays on the device as one uint32 array (a row per copy); each step takes it, the
-    actions and the context set, and returns it with one float32 array: a row per copy holding the
-    observation, reward, end flags, final observation, context ids (and, when contexts are resampled,
-    the episode's context), then the environment's facts of the step (``Env.step_info``).
-    Programs are shared by equal configurations; the context set is an argument.
+    actions and the context set, and returns it with the copies' :class:`CopySteps`, packed by
+    ``frame``. Programs are shared by equal configurations; the context set is an argument.
     """
 
     def __init__(self, env: Env, schedule: ContextSchedule, num_envs: int):
@@ -64,16 +64,25 @@ class VectorPrograms:
         self.schedule = schedule
         self.num_envs = num_envs
         self.space = env.context_space
-        self.packer, started_info = program_layout(env, schedule)
-        # name → (dtype, values per copy) of the environment's step facts, in row order.
-        self.step_info = {
-            name: (np.dtype(value.dtype), int(np.prod(value.shape)))
-            for name, value in started_info.items()
-        }
-        self.reset = jax.jit(self._reset)
-        self.step = jax.jit(self._step, donate_argnums=0)
+        self.packer = state_packer(env, schedule)
+        vectors = np.zeros((num_envs, len(self.space)), np.float32)
+        ids, given = np.zeros(num_envs, np.int32), np.zeros(num_envs, bool)
+        examples = (key_data(), context_table(schedule), vectors, ids, given)
+        _, steps = jax.eval_shape(self._start, *examples)
+        self.frame = Packer.of_rows(steps)
+        self.reset = jax.jit(self._packed(self._start))
+        self.step = jax.jit(self._packed(self._advance), donate_argnums=0)
 
-    def _reset(self, key_bits, table, override, override_id, given):
+    def _packed(self, program: Callable) -> Callable:
+        """``program`` returning the copies' state and steps as rows of uint32 words."""
+
+        def packed(*args):
+            state, steps = program(*args)
+            return jax.vmap(self.packer.pack)(state), jax.vmap(self.frame.pack)(steps)
+
+        return packed
+
+    def _start(self, key_bits, table, override, override_id, given):
         """Every copy starts its first episode; where ``given``, under the ``override`` context."""
         cenv = contextual_env(self.env, self.schedule, table)
         num_envs = self.num_envs
@@ -87,37 +96,28 @@ class VectorPrograms:
 
         copies = jnp.arange(num_envs, dtype=jnp.int32)
         state, timestep = jax.vmap(start)(copies, override, override_id, given)
-        return jax.vmap(self.packer.pack)(state), self._rows(state, timestep)
+        return state, self._steps(state, timestep)
 
-    def _step(self, carry, actions, table):
+    def _advance(self, carry, actions, table):
         cenv = contextual_env(self.env, self.schedule, table)
         state = jax.vmap(self.packer.unpack)(carry)
         state, timestep = cenv.step_copies(state, actions)
-        return jax.vmap(self.packer.pack)(state), self._rows(state, timestep)
+        return state, self._steps(state, timestep)
 
-    def _rows(self, state, timestep):
-        count = self.num_envs
-        return jnp.concatenate(
-            [
-                timestep.obs.reshape(count, -1),
-                timestep.reward[:, None],
-                timestep.terminated.astype(jnp.float32)[:, None],
-                timestep.truncated.astype(jnp.float32)[:, None],
-                timestep.final_obs.reshape(count, -1),
-                timestep.info["context_id"].astype(jnp.float32)[:, None],
-                state.context_id.astype(jnp.float32)[:, None],
-                # A set member's values the host reads from the set; only resampled ones travel.
-                *(
-                    [jax.vmap(self.space.to_array)(state.context)]
-                    if self.schedule.resamples
-                    else []
-                ),
-                *(
-                    value.reshape(count, -1).astype(jnp.float32)
-                    for value in env_step_info(timestep).values()
-                ),
-            ],
-            axis=1,
+    def _steps(self, state, timestep) -> CopySteps:
+        def flat(x):
+            return x.reshape(self.num_envs, -1).astype(jnp.float32)
+
+        return CopySteps(
+            flat(timestep.obs),
+            timestep.reward.astype(jnp.float32),
+            timestep.terminated,
+            timestep.truncated,
+            flat(timestep.final_obs),
+            timestep.info["context_id"].astype(jnp.int32),
+            state.context_id.astype(jnp.int32),
+            jax.vmap(self.space.to_array)(state.context) if self.schedule.resamples else None,
+            env_step_info(timestep),
         )
 
 
@@ -163,7 +163,6 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self.check = action_check(self.single_action_space, self.num_envs)
         flat, base = observation_spaces(self.env)
         self.single_observation_space = observation_space(flat, base, obs_context_as_dict)
-        self.obs_size = flat.shape[0]
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         ids = self.schedule.ids
@@ -192,15 +191,10 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             if f.kind == "categorical"
         }
         self._carry: jax.Array | None = None  # stays on the device between steps
-        self._obs_slice = slice(0, self.obs_size)
-        self._final_slice = slice(self.obs_size + 3, 2 * self.obs_size + 3)
-        resampled = len(self.context_space) if self.schedule.resamples else 0
-        self._context_slice = slice(2 * self.obs_size + 5, 2 * self.obs_size + 5 + resampled)
-        self._step_info_start = self._context_slice.stop
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
-        indices = indices.astype(np.int64)  # exact: indices are small integers stored as float32
+        indices = indices.astype(np.int64)
         if self._ids_are_indices:  # ids 0..K-1 (and -1 for resampled): the index is the id
             return indices
         ids = self._id_table[np.maximum(indices, 0)]  # fancy indexing copies
@@ -225,36 +219,30 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             info[f"_{name}"] = self._everyone
         return info
 
-    def _update_values(self, rows: np.ndarray, changed: np.ndarray) -> None:
+    def _update_values(self, steps: CopySteps, changed: np.ndarray) -> None:
         """The context values of the copies whose episode changed: from the set, or as they came back."""
         if self.schedule.resamples:
-            fresh = rows[:, self._context_slice]
+            fresh = steps.context
         else:
-            fresh = self._table_host[rows[:, 2 * self.obs_size + 4].astype(np.int64)]
+            fresh = self._table_host[steps.context_id]
         self._values = np.where(changed[:, None], fresh, self._values)
 
-    def _step_info(self, rows: np.ndarray) -> dict[str, Any]:
+    def _step_info(self, steps: CopySteps) -> dict[str, Any]:
         """The environment's facts of the step per copy (``Env.step_info``: completed, died…)."""
         info: dict[str, Any] = {}
-        start = self._step_info_start
-        for name, (dtype, size) in self.programs.step_info.items():
-            values = rows[:, start : start + size]
-            start += size
-            if dtype == np.bool_:
-                values = values > 0.5
-            elif np.issubdtype(dtype, np.integer):
-                values = values.astype(np.int64)
-            info[name] = values[:, 0] if size == 1 else values
+        for name, values in steps.info.items():
+            integer = np.issubdtype(values.dtype, np.integer)
+            info[name] = values.astype(np.int64) if integer else values
             info[f"_{name}"] = self._everyone
         return info
 
-    def _info(self, rows: np.ndarray) -> dict[str, Any]:
+    def _info(self, steps: CopySteps) -> dict[str, Any]:
         return {
-            "context_id": self._user_ids(rows[:, 2 * self.obs_size + 4]),
+            "context_id": self._user_ids(steps.context_id),
             "_context_id": self._everyone,
             "context": self._context_info(),
             "_context": self._everyone,
-            **self._step_info(rows),
+            **self._step_info(steps),
         }
 
     def _overrides(self, options: dict[str, Any] | None):
@@ -297,35 +285,33 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         super().reset(seed=seed)
         key_bits = run_key_bits(self.np_random)
         self._carry, rows = self.programs.reset(key_bits, self.table, vectors, indices, given)
-        rows = np.asarray(rows)
-        self._values = vectors  # the given ones; the others from the set or the rows
-        self._update_values(rows, ~given)
-        return self._observations(rows[:, self._obs_slice]), self._info(rows)
+        steps = self.programs.frame.unpack_host(np.asarray(rows))
+        self._values = vectors  # the given ones; the others from the set or the steps
+        self._update_values(steps, ~given)
+        return self._observations(steps.obs), self._info(steps)
 
     def step(self, actions):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         self._carry, rows = self.programs.step(self._carry, self.check(actions), self.table)
-        rows = np.asarray(rows)
-        d = self.obs_size
-        terminated = rows[:, d + 1] > 0.5
-        truncated = rows[:, d + 2] > 0.5
-        done = terminated | truncated
+        steps = self.programs.frame.unpack_host(np.asarray(rows))
+        done = steps.terminated | steps.truncated
         if done.any():
-            self._update_values(rows, done)
-        info = self._info(rows)
+            self._update_values(steps, done)
+        info = self._info(steps)
         if done.any():
-            info["final_obs"] = self._observations(rows[:, self._final_slice])
+            info["final_obs"] = self._observations(steps.final_obs)
             info["_final_obs"] = done
             # The step facts are the ended episode's (taken before the restart), as in ``info``.
-            facts = self._step_info(rows)
+            facts = self._step_info(steps)
             info["final_info"] = {
-                "context_id": self._user_ids(rows[:, 2 * d + 3]),
+                "context_id": self._user_ids(steps.final_context_id),
                 "_context_id": done,
                 **{name: done if name.startswith("_") else value for name, value in facts.items()},
             }
             info["_final_info"] = done
-        return self._observations(rows[:, self._obs_slice]), rows[:, d], terminated, truncated, info
+        obs = self._observations(steps.obs)
+        return obs, steps.reward, steps.terminated, steps.truncated, info
 
     def render(self):
         if self.render_mode is None or self._carry is None:
