@@ -62,6 +62,7 @@ EXPERIMENTS = [
     "protocols.train_test",
     "protocols.tabular",
     "protocols.hpo",
+    "protocols.curriculum",
     "protocols",
     "executors",
     "runner",

@@ -49,6 +49,8 @@ class Trial:
     train_set: str
     test_set: str
     template_set: str = ""  # set whose varying features the agent sees (default: train_set)
+    # a curriculum over train_set (the spec's make_curriculum names it; "": train on the set as is)
+    curriculum: str = ""
 
     @property
     def template(self) -> str:
@@ -56,7 +58,13 @@ class Trial:
 
     def group(self, sizes: Mapping[str, int]) -> tuple:
         """Trials with equal groups can be vmapped together (``sizes``: each set's contexts)."""
-        return (self.variant, self.template, sizes[self.train_set], sizes[self.test_set])
+        return (
+            self.variant,
+            self.template,
+            sizes[self.train_set],
+            sizes[self.test_set],
+            self.curriculum,
+        )
 
 
 @dataclasses.dataclass(frozen=True)

@@ -64,6 +64,9 @@ class Protocol:
     per_context_intervals: bool = True
     draws_heatmap: bool = False  # its own sections draw the two-feature heat map
     training_section: bool = True  # report: the training curves (PB2 draws its schedules instead)
+    # sections(…, training=) also gets each trial's return on its training contexts and a random
+    # policy's there (the verdicts it gives only for agents that learned)
+    reads_training: bool = False
     runs_text: Callable[[Any], str] = seeds_text
     progress_row: Callable[..., dict] = chunks_progress
 

@@ -515,7 +515,8 @@ def build_report(run: RunDir) -> str:
         sections += protocol.sections(spec, plan, results, curves)
     else:  # every section reads the same score cells
         cells = run_cells(run, plan, results)
-        sections += protocol.sections(spec, plan, cells, curves)
+        extra = {"training": training} if protocol.reads_training else {}
+        sections += protocol.sections(spec, plan, cells, curves, **extra)
         if protocol.training_section and not curves.empty:
             sections.append(Section("Training", figures=[training_figure(spec, curves)]))
         table = per_context_table(cells)

@@ -45,19 +45,24 @@ class SpecError(ValueError):
 
 
 # What each protocol varies on an environment when neither --vary nor a config says: a training
-# distribution (``train``) or Kirk et al.'s two-feature boxes (``train_box``/``test_box``). Protocols
-# name the fields they take from here (``CommonSpec.env_defaults``); an environment missing here
-# needs --vary, so a default never names another environment's feature.
+# distribution (``train``), Kirk et al.'s two-feature boxes (``train_box``/``test_box``), or the
+# curriculum protocol's whole ranges and ADR's return thresholds (``ranges``, ``adr_thresholds``).
+# Protocols name the fields they take from here (``CommonSpec.env_defaults``); an environment
+# missing here needs --vary, so a default never names another environment's feature.
 ENV_DEFAULTS: dict[str, dict[str, dict]] = {
     "CartPole": {
         "train": {"length": {"uniform": [0.25, 0.75]}},
         "train_box": {"length": [0.25, 0.75], "tau": [0.015, 0.025]},
         "test_box": {"length": [0.05, 1.5], "tau": [0.005, 0.05]},
+        "ranges": {"length": [0.05, 5.0]},
+        "adr_thresholds": [100.0, 400.0],
     },
     "Pendulum": {
         "train": {"l": {"uniform": [0.5, 1.5]}},
         "train_box": {"l": [0.75, 1.25], "m": [0.75, 1.25]},
         "test_box": {"l": [0.25, 2.0], "m": [0.25, 2.0]},
+        "ranges": {"g": [2.0, 20.0], "l": [0.25, 2.5]},
+        "adr_thresholds": [-1000.0, -400.0],
     },
     "MountainCar": {
         "train": {"gravity": {"uniform": [0.002, 0.003]}},
@@ -312,6 +317,10 @@ class CommonSpec:
                     "apply; leave it out"
                 )
 
+    def make_curriculum(self, name: str, pool: Any):
+        """The curriculum ``name`` of a trial over the contexts ``pool`` (protocols that have one)."""
+        raise SpecError(f"the {self.protocol} protocol trains no agent under a curriculum ({name})")
+
     def agent_entry(self):
         """The registered agent of this spec."""
         try:
@@ -390,6 +399,28 @@ class CommonSpec:
             return distributions.check_spec(self.space(), parsed)
         except ContextError as error:
             raise SpecError(f"{field}: {error}") from None
+
+
+def feature_ranges(space, field: str, box: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+    """``{feature: [low, high]}`` as canonical names → (low, high), each a non-empty range inside
+    the feature's bounds; anything else is one :class:`SpecError` naming ``field`` and the feature."""
+    resolved = {}
+    for name, ends in box.items():
+        try:
+            canonical = space.resolve(name)
+        except ContextError as error:
+            raise SpecError(f"{field}: {error}") from None
+        if not isinstance(ends, (list, tuple)) or len(ends) != 2:
+            raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
+        low, high = (check_number(f"{field}.{name}", v) for v in ends)
+        if not low < high:
+            raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
+        try:
+            distributions.Uniform(low, high).check(space.features[canonical])
+        except ContextError as error:
+            raise SpecError(f"{field}: {error}") from None
+        resolved[canonical] = (low, high)
+    return resolved
 
 
 def merge_features(data: dict, field: str, given: Mapping[str, Any]) -> str | None:

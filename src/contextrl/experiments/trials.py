@@ -46,12 +46,14 @@ def _first(contexts, n: int):
     return jax.tree_util.tree_map(lambda leaf: leaf[:n], contexts)
 
 
-def _compiled(spec, variant: str, env, template, tested_on_training: bool):
+def _compiled(spec, variant: str, env, template, tested_on_training: bool, curriculum: str):
     """The jitted, vmapped train-and-evaluate function; chunks of the same shape share one compile.
 
     Only the structure of ``template`` matters (its size and which features vary), so it is the key.
     ``tested_on_training``: the test set is the training set (optimality gap), so the trained
-    policy's return there is read from the test returns instead of evaluated twice.
+    policy's return there is read from the test returns instead of evaluated twice. ``curriculum``:
+    the agent trains under the spec's curriculum of that name over the template (its pool), which
+    chooses the training contexts itself; its distribution per update comes back with the curve.
     """
     agent = spec.agent_entry()
     key = (
@@ -64,6 +66,8 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool):
         tested_on_training,
         len(template),
         env.context_space.varying(template) if len(template) > 1 else (),
+        # a curriculum holds its pool and options: the spec that makes them keys it
+        (curriculum, repr(spec)) if curriculum else (),
     )
     if key in _COMPILED:
         return _COMPILED[key]
@@ -71,16 +75,19 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool):
     config = spec.agent_config(variant)
     policy = agent.make_policy(config, env, template)
     random_policy = get_agent("random").make_policy(None, env, template)
-    train = agent.make_train(config, env, template) if agent.trained else None
+    taught = spec.make_curriculum(curriculum, template) if curriculum else None
+    train = agent.make_train(config, env, taught or template) if agent.trained else None
 
     def one(key, train_ctx, test_ctx):
         train_key, eval_key, train_eval_key = jax.random.split(key, 3)
+        trace = {}
         if train is None:
             params, steps, curve = None, jax.numpy.zeros(0), jax.numpy.zeros(0)
         else:
-            result = train(train_key, train_ctx)
+            result = train(train_key) if taught else train(train_key, train_ctx)
             params, steps = result.params, result.metrics["step"]
             curve = result.metrics["episode_return"]
+            trace = result.metrics.get("curriculum", {})
         returns = evaluate(policy, params, env, test_ctx, episodes, eval_key)
         own = _first(train_ctx, TRAIN_EVAL_CONTEXTS)
         if tested_on_training:
@@ -88,24 +95,47 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool):
         else:
             trained = evaluate(policy, params, env, own, episodes, train_eval_key).mean()
         random = evaluate(random_policy, None, env, own, episodes, train_eval_key).mean()
-        return returns, steps, curve, params, trained, random
+        return returns, steps, curve, params, trained, random, trace
 
     _COMPILED[key] = jax.jit(jax.vmap(one))
     return _COMPILED[key]
 
 
-def _train_and_evaluate(spec, variant, env, template, keys, train_batch, test_batch, same):
+def _train_and_evaluate(spec, trials, env, template, keys, train_batch, test_batch, same):
     """(returns (trials × test contexts), curve steps, curves (trials × points), per-trial params,
-    per-trial (trained, random) mean return on the training contexts)."""
-    function = _compiled(spec, variant, env, template, same)
-    returns, steps, curves, params, trained, random = function(keys, train_batch, test_batch)
+    per-trial (trained, random) mean return on the training contexts, the curriculum's columns of
+    the curves: name → trials × points)."""
+    first = trials[0]
+    function = _compiled(spec, first.variant, env, template, same, first.curriculum)
+    returns, steps, curves, params, trained, random, trace = function(keys, train_batch, test_batch)
     params = jax.device_get(params)
     per_trial = [
         None if params is None else jax.tree_util.tree_map(lambda leaf, i=i: leaf[i], params)
         for i in range(len(keys))
     ]
     own = np.stack([np.asarray(trained), np.asarray(random)], axis=1)
-    return np.asarray(returns), np.asarray(steps[0]), np.asarray(curves), per_trial, own
+    return (
+        np.asarray(returns),
+        np.asarray(steps[0]),
+        np.asarray(curves),
+        per_trial,
+        own,
+        curriculum_columns(trace),
+    )
+
+
+def curriculum_columns(trace: dict) -> dict[str, np.ndarray]:
+    """A curriculum's per-update arrays (trials × updates × …) as curve columns: ``curriculum.NAME``
+    for one number per update, ``curriculum.NAME.I`` for entry I of a vector (a pool's weights)."""
+    columns = {}
+    for name, values in trace.items():
+        values = np.asarray(values, np.float64)
+        if values.ndim == 2:
+            columns[f"curriculum.{name}"] = values
+        else:
+            for index in range(values.shape[2]):
+                columns[f"curriculum.{name}.{index}"] = values[:, :, index]
+    return columns
 
 
 def host_context_input(spec, variant: str, env, template):
@@ -169,7 +199,7 @@ def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
             )
         )
         params.append(trial_params)
-    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own)
+    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own), {}
 
 
 def _like(contexts, template):
@@ -192,15 +222,15 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
     template = plan.sets[trials[0].template].contexts
     keys = jax.numpy.stack([trial_key(spec.seed, t.id) for t in trials])
     if spec.host:
-        returns, steps, curves, params, own = _host_train_and_evaluate(
+        returns, steps, curves, params, own, taught = _host_train_and_evaluate(
             plan, trials, env, template, keys
         )
     else:
         train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
         test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
         same = all(t.test_set == t.train_set for t in trials)
-        returns, steps, curves, params, own = _train_and_evaluate(
-            spec, trials[0].variant, env, template, keys, train_batch, test_batch, same
+        returns, steps, curves, params, own, taught = _train_and_evaluate(
+            spec, trials, env, template, keys, train_batch, test_batch, same
         )
     seconds = time.perf_counter() - start
     space = env.context_space
@@ -226,6 +256,7 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
                         "seed": trial.seed,
                         "step": steps.astype(np.int64),
                         "episode_return": curves[row].astype(np.float64),
+                        **{name: values[row] for name, values in taught.items()},
                     }
                 )
             )

@@ -16,8 +16,7 @@ from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import FIXED
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import ONE_SEED, score_intervals, score_matrices
-from contextrl.context.distributions import Uniform, draw
-from contextrl.context.features import ContextError
+from contextrl.context.distributions import draw
 from contextrl.experiments.plan import TRAIN_KEY, ContextSet, Plan, Trial, grid
 from contextrl.experiments.protocol import Protocol, register_protocol
 from contextrl.experiments.reports import figure, plane_points
@@ -26,6 +25,7 @@ from contextrl.experiments.spec import (
     SpecError,
     check_int,
     check_number,
+    feature_ranges,
     merge_features,
     parse_assignments,
 )
@@ -92,22 +92,7 @@ class TrainTestSpec(CommonSpec):
         for field, box in (("train_box", self.train_box), ("test_box", self.test_box)):
             if not isinstance(box, Mapping) or len(box) != 2:
                 raise SpecError(f"{field}: give exactly two features with [low, high], got {box!r}")
-            resolved = {}
-            for name, ends in box.items():
-                try:
-                    canonical = space.resolve(name)
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                if not isinstance(ends, (list, tuple)) or len(ends) != 2:
-                    raise SpecError(f"{field}.{name}: give [low, high], got {ends!r}")
-                low, high = (check_number(f"{field}.{name}", v) for v in ends)
-                if not low < high:
-                    raise SpecError(f"{field}.{name}: empty range [{low}, {high}]")
-                try:
-                    Uniform(low, high).check(space.features[canonical])
-                except ContextError as error:
-                    raise SpecError(f"{field}: {error}") from None
-                resolved[canonical] = (low, high)
+            resolved = feature_ranges(space, field, box)
             out.append(resolved)
         if list(out[0]) != list(out[1]):
             raise SpecError(
