@@ -93,19 +93,13 @@ class ADR(Curriculum):
             canonical = space.resolve(name)
             if canonical not in ranges:
                 raise ContextError(f"ADR: start gives {canonical}, which ranges does not adapt")
-            low, high = _pair(name, pair, "start")
-            if not ranges[canonical][0] <= low <= high <= ranges[canonical][1]:
-                raise ContextError(
-                    f"ADR: start {canonical} [{low:g}, {high:g}] is not inside its outer range "
-                    f"[{ranges[canonical][0]:g}, {ranges[canonical][1]:g}]"
-                )
-            start[canonical] = (low, high)
+            start[canonical] = _pair(name, pair, "start")
         for name, (low, high) in start.items():
             outer = ranges[name]
             if not outer[0] <= low <= high <= outer[1]:
                 raise ContextError(
-                    f"ADR: {name}'s default {low:g} is outside its outer range "
-                    f"[{outer[0]:g}, {outer[1]:g}]; give start=(low, high) inside it"
+                    f"ADR: {name} starts at [{low:g}, {high:g}] (the default unless start gives "
+                    f"it), not inside its outer range [{outer[0]:g}, {outer[1]:g}]"
                 )
         object.__setattr__(self, "ranges", ranges)
         object.__setattr__(self, "start", start)
