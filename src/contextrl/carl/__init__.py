@@ -40,6 +40,8 @@ contextrl, and each difference is listed here:
 - ``env=`` takes a contextrl environment (``crl.make("CartPole", max_steps=200)``) or None, not a
   gymnasium environment: the dynamics are contextrl's.
 - ``contexts`` values are stored at the precision the environment uses (float32).
+- ``changes=`` (contextrl's contexts that change within an episode, which CARL lacks) goes to the core's
+  step, as in every face; ``context`` then follows the value each step ran under.
 """
 
 from contextrl.carl.envs.registry import register_carl_ids

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import SingleDeviceSharding
 
+from contextrl.context.changes import Change
 from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import ContextSchedule
 from contextrl.context.selectors import FromSet
@@ -69,9 +70,12 @@ def schedule_provider(schedule: ContextSchedule, table) -> Any:
     return FromSet(schedule.space.from_array(table), schedule.provider.selector)
 
 
-def contextual_env(env: Env, schedule: ContextSchedule, table) -> ContextualEnv:
-    """The core contextual env of ``schedule`` with its set given as ``table``."""
-    return ContextualEnv(env, schedule_provider(schedule, table))
+def contextual_env(
+    env: Env, schedule: ContextSchedule, table, changes: Change | None = None
+) -> ContextualEnv:
+    """The core contextual env of ``schedule`` with its set given as ``table``, its context moved
+    within each episode by ``changes`` (the core's, so every face changes it the same way)."""
+    return ContextualEnv(env, schedule_provider(schedule, table), changes)
 
 
 # What the contextual env adds to ``TimeStep.info``; the rest is the environment's ``step_info``.
@@ -93,6 +97,20 @@ def info_to_host(values: dict) -> dict[str, Any]:
 
 _PROGRAM_CACHE: dict[Hashable, Any] = {}
 PROGRAM_CACHE_SIZE = 64
+
+
+def program_key(selection_key: Hashable | None, *parts: Any) -> Hashable | None:
+    """The :func:`shared_program` key of a selection and the other parts of a configuration, or None
+    (a private program) where one of them cannot be hashed: a selector's closure, or a change holding
+    a dict (its values or distributions)."""
+    if selection_key is None:
+        return None
+    key = (*parts, selection_key)
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
 
 
 def shared_program(key: Hashable | None, build: Callable[[], Any]) -> Any:
@@ -227,12 +245,13 @@ class JaxPrograms:
     ``begin`` takes a :class:`Run`, ``restart`` the packed state; each returns :class:`Started`
     (``*_with`` also take the episode's :class:`Given` context). ``advance`` takes (packed state,
     action) and steps without a restart (a gymnasium single env restarts only when asked), returning
-    :class:`Stepped`.
+    :class:`Stepped`, with the step's context where ``changes`` move it (else None: no words).
     """
 
-    def __init__(self, env: Env, schedule: ContextSchedule):
+    def __init__(self, env: Env, schedule: ContextSchedule, changes: Change | None = None):
         self.env = env
         self.schedule = schedule
+        self.changes = changes
         self.space = env.context_space
         self.packer = state_packer(env, schedule)
         table, carry = context_table(schedule), np.zeros(self.packer.size, np.uint32)
@@ -246,6 +265,9 @@ class JaxPrograms:
         self.restart_with = PackedProgram(self._restart_with, (carry, given), table, jit=cpu_jit)
         self.advance = PackedProgram(self._advance, (carry, action), jit=cpu_jit)
 
+    def _cenv(self, table) -> ContextualEnv:
+        return contextual_env(self.env, self.schedule, table, self.changes)
+
     def _started(self, state, timestep) -> Started:
         return Started(
             self.packer.pack(state),
@@ -256,28 +278,30 @@ class JaxPrograms:
         )
 
     def _begin(self, run: Run, table) -> Started:
-        cenv = contextual_env(self.env, self.schedule, table)
+        cenv = self._cenv(table)
         return self._started(*cenv.reset(run.key, run.episode, run.copies))
 
     def _begin_with(self, request: tuple[Run, Given], table) -> Started:
-        (run, given), cenv = request, contextual_env(self.env, self.schedule, table)
+        (run, given), cenv = request, self._cenv(table)
         context = self.space.from_array(given.context)
         return self._started(
             *cenv.reset(run.key, run.episode, run.copies, context, given.context_id)
         )
 
     def _restart(self, carry, table) -> Started:
-        cenv = contextual_env(self.env, self.schedule, table)
+        cenv = self._cenv(table)
         return self._started(*cenv.restart(self.packer.unpack(carry)))
 
     def _restart_with(self, request: tuple[Any, Given], table) -> Started:
-        (carry, given), cenv = request, contextual_env(self.env, self.schedule, table)
+        (carry, given), cenv = request, self._cenv(table)
         context = self.space.from_array(given.context)
         return self._started(*cenv.restart(self.packer.unpack(carry), context, given.context_id))
 
     def _advance(self, request: tuple[Any, Any]) -> Stepped:
-        (carry, action), cenv = request, ContextualEnv(self.env, self.schedule.provider)
+        carry, action = request
+        cenv = ContextualEnv(self.env, self.schedule.provider, self.changes)
         state, timestep = cenv.advance(self.packer.unpack(carry), action)  # advancing never selects
+        moved = None if self.changes is None else _floats(self.space.to_array(state.context))
         return Stepped(
             self.packer.pack(state),
             _floats(timestep.obs),
@@ -285,17 +309,19 @@ class JaxPrograms:
             timestep.terminated,
             timestep.truncated,
             env_step_info(timestep),
+            moved,
         )
 
 
 class JaxBackend:
     """A JAX ``Env`` stepped through :class:`JaxPrograms`; the host keeps the packed state. The time limit
-    and the context observation are the core env's; the action rule is :func:`action_check`'s."""
+    and the context observation are the core env's; the action rule is :func:`action_check`'s.
+    ``context_vector`` is the context the last start or step ran under (``changes`` move it)."""
 
-    def __init__(self, env: Env, schedule: ContextSchedule):
-        key = schedule.selection_key
+    def __init__(self, env: Env, schedule: ContextSchedule, changes: Change | None = None):
         self.programs = shared_program(
-            None if key is None else ("single", env, key), lambda: JaxPrograms(env, schedule)
+            program_key(schedule.selection_key, "single", env, changes),
+            lambda: JaxPrograms(env, schedule, changes),
         )
         self.packer = self.programs.packer
         self.table = on_cpu(context_table(schedule))
@@ -303,6 +329,7 @@ class JaxBackend:
         self.check = action_check(self.action_space)
         self.flat_space, self.base_space = observation_spaces(env)
         self.carry: np.ndarray | None = None
+        self.context_vector: np.ndarray | None = None
         # The environment's facts of the last start or step (``Env.step_info``), for gymnasium's info.
         self._step_info: dict[str, Any] = {}
         # The step's input, filled in place through its fields: per-step host work is a few NumPy calls.
@@ -317,7 +344,8 @@ class JaxBackend:
         )
         self.carry = started.carry
         self._step_info = info_to_host(started.info)
-        return started.obs.copy(), started.context.copy(), int(started.context_id)
+        self.context_vector = started.context.copy()
+        return started.obs.copy(), self.context_vector, int(started.context_id)
 
     def step_info(self) -> dict[str, Any]:
         """The environment's facts of the last start or step (``Env.step_info``)."""
@@ -349,6 +377,8 @@ class JaxBackend:
         self.carry = stepped.carry
         if stepped.info:
             self._step_info = info_to_host(stepped.info)
+        if stepped.context is not None:
+            self.context_vector = stepped.context.copy()
         obs, reward = stepped.obs.copy(), float(stepped.reward)
         return obs, reward, bool(stepped.terminated), bool(stepped.truncated)
 
@@ -602,12 +632,18 @@ class HostBackend:
 
 
 def make_backend(
-    env: Env | Any, schedule: ContextSchedule, obs_context: ContextObservation, max_steps: int
+    env: Env | Any,
+    schedule: ContextSchedule,
+    obs_context: ContextObservation,
+    max_steps: int,
+    changes: Change | None = None,
 ) -> JaxBackend | HostBackend:
     """The backend of ``env`` (a JAX env carrying ``obs_context``, or a ``HostEnv``): compiled programs,
-    or a host simulator (a ``HostEnv`` itself, or a JAX env's scalar physics where it offers them)."""
+    or a host simulator (a ``HostEnv`` itself, or a JAX env's scalar physics where it offers them).
+    ``changes`` (bound, JAX envs only) step in the compiled programs: the core's step applies them,
+    which scalar physics would have to repeat."""
     if not isinstance(env, Env):
         return HostBackend(env, schedule, obs_context, max_steps)
-    if steps_on_host(env):
+    if changes is None and steps_on_host(env):
         return HostBackend(ScalarPhysics(env), schedule, obs_context, max_steps)
-    return JaxBackend(env, schedule)
+    return JaxBackend(env, schedule, changes)

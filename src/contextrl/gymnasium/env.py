@@ -18,6 +18,7 @@ import gymnasium
 import jax
 import numpy as np
 
+from contextrl.context.changes import Change, bind
 from contextrl.context.features import ContextBase, ContextError
 from contextrl.context.observation import ContextObservation
 from contextrl.context.schedule import ContextSchedule, resolve_contexts
@@ -60,12 +61,14 @@ def check_count(name: str, value: Any, *, optional: bool = False) -> None:
 class Setup:
     """What the single and the vector env build from their shared arguments, checked before any
     episode runs: the environment (a JAX env carrying ``obs_context``), its context schedule, the
-    context observation and the time limit (a JAX env's own, resolved by the core)."""
+    context observation, the time limit (a JAX env's own, resolved by the core) and the changes
+    within an episode (bound by the core, or None)."""
 
     env: Env | HostEnv
     schedule: ContextSchedule
     obs_context: ContextObservation
     max_steps: int
+    changes: Change | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +88,22 @@ class ContextView:
             raise ContextError(f"obs_context_as_dict must be True or False, got {self.as_dict!r}")
 
 
+def bound_changes(env: Env | HostEnv, changes: Change | None) -> Change | None:
+    """``changes`` checked by the core (:func:`contextrl.context.changes.bind`: kind, features,
+    parameters), and refused for a host environment: its simulator steps outside the core's step,
+    the one place a context changes mid-episode."""
+    if changes is None:
+        return None
+    bound = bind(env, changes)
+    if not isinstance(env, Env):
+        raise ContextError(
+            f"{type(changes).__name__}: {env.name} is a host environment (its simulator steps on the "
+            "CPU, outside the core's step), so its context cannot change mid-episode; changes= "
+            "takes JAX environments"
+        )
+    return bound
+
+
 def build_setup(
     env_id: str | Env | HostEnv,
     contexts: Any,
@@ -92,10 +111,12 @@ def build_setup(
     view: ContextView,
     max_steps: int | None,
     env_kwargs: dict,
+    changes: Change | None = None,
 ) -> Setup:
     """The :class:`Setup` of a face's arguments (see :class:`ContextualGymEnv`)."""
     check_count("max_steps", max_steps, optional=True)
     inner = build_env(env_id, max_steps, env_kwargs)
+    changes = bound_changes(inner, changes)
     schedule = resolve_contexts(inner.context_space, contexts, context_selector)
     obs_context = schedule.observation(view.features, view.normalize, view.noise)
     if view.as_dict and obs_context.hidden:
@@ -105,7 +126,7 @@ def build_setup(
         )
     if isinstance(inner, Env):
         inner = dataclasses.replace(inner, obs_context=obs_context)
-        return Setup(inner, schedule, obs_context, inner.max_steps)
+        return Setup(inner, schedule, obs_context, inner.max_steps, changes)
     limit = inner.default_max_steps if max_steps is None else int(max_steps)
     return Setup(inner, schedule, obs_context, limit)
 
@@ -166,7 +187,10 @@ class ContextualGymEnv(gymnasium.Env):
     registered. ``info`` holds ``context_id`` (the set's id; -1 for resampled or given contexts),
     ``context`` (feature name → value) and the environment's own facts of the episode (its
     ``step_info``, e.g. the platformer's ``completed``, ``died`` and ``distance``). ``reset(options={"context": {...}})`` or
-    ``options={"context_id": id}`` sets the context of one episode.
+    ``options={"context_id": id}`` sets the context of one episode. ``changes``: how the context moves
+    within an episode (``crl.Redraw``, ``crl.RandomWalk``, ``crl.Piecewise``, ``crl.StepFunction``;
+    JAX environments only), applied by the core's step; the observation and ``info["context"]`` show
+    the value the step ran under.
 
     ``copy_index``/``num_copies`` are for vector environments: copy ``i`` asks the selector for episode
     ``i + e * num_copies``, so the copies walk through the set together instead of all starting at its
@@ -188,6 +212,7 @@ class ContextualGymEnv(gymnasium.Env):
         render_mode: str | None = None,
         copy_index: int = 0,
         num_copies: int = 1,
+        changes: Change | None = None,
         **env_kwargs: Any,
     ):
         if render_mode is not None and render_mode not in RENDER_MODES:
@@ -202,10 +227,10 @@ class ContextualGymEnv(gymnasium.Env):
         view = ContextView(
             obs_context_features, obs_context_as_dict, obs_context_normalize, obs_context_noise
         )
-        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs)
+        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs, changes)
         inner, self.schedule, obs_context = made.env, made.schedule, made.obs_context
-        self.max_steps = made.max_steps
-        self.backend = make_backend(inner, self.schedule, obs_context, self.max_steps)
+        self.max_steps, self.changes = made.max_steps, made.changes
+        self.backend = make_backend(inner, self.schedule, obs_context, self.max_steps, self.changes)
         self.contextrl_env = inner
         self.obs_context = obs_context
         self.context_space = inner.context_space
@@ -282,13 +307,15 @@ class ContextualGymEnv(gymnasium.Env):
         if self._key_bits is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         obs, reward, terminated, truncated = self.backend.advance(action)
+        if self.changes is not None:  # the context this step ran under
+            self._info["context"] = self.schedule.values_dict(self.backend.context_vector)
         if self.render_mode == "human":
             self.render()
         return self._observation(obs), reward, terminated, truncated, self._fresh_info()
 
     @property
     def context(self) -> dict[str, Any]:
-        """The current episode's context (feature name → value)."""
+        """The current episode's context (feature name → value), as of its last step."""
         return dict(self._info.get("context", {}))
 
     def _frame(self) -> np.ndarray:

@@ -53,6 +53,7 @@ class Stepped(NamedTuple):
     terminated: Any
     truncated: Any
     info: dict[str, Any]
+    context: Any = None  # the step's context as a vector where changes move it; None: the episode's
 
 
 # ---- a host episode's start (:class:`contextrl.gymnasium.backends.HostPrograms`) ---------------------

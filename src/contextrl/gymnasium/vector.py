@@ -24,6 +24,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from contextrl.context.changes import Change
 from contextrl.context.schedule import RESAMPLED_ID, ContextSchedule
 from contextrl.core.env import Env, tree_where
 from contextrl.core.registry import spec
@@ -33,6 +34,7 @@ from contextrl.gymnasium.backends import (
     contextual_env,
     env_step_info,
     observation_spaces,
+    program_key,
     shared_program,
     state_packer,
 )
@@ -56,13 +58,17 @@ class VectorPrograms:
 
     The state stays on the device as one uint32 array (a row per copy); each step takes it, the
     actions and the context set, and returns it with the copies' :class:`CopySteps`, packed by
-    ``frame``. Programs are shared by equal configurations; the context set is an argument.
+    ``frame``. Programs are shared by equal configurations; the context set is an argument. ``changes``
+    move each copy's context within its episode, in the core's step.
     """
 
-    def __init__(self, env: Env, schedule: ContextSchedule, num_envs: int):
+    def __init__(
+        self, env: Env, schedule: ContextSchedule, num_envs: int, changes: Change | None = None
+    ):
         self.env = env
         self.schedule = schedule
         self.num_envs = num_envs
+        self.changes = changes
         self.space = env.context_space
         self.packer = state_packer(env, schedule)
         vectors = np.zeros((num_envs, len(self.space)), np.float32)
@@ -84,7 +90,7 @@ class VectorPrograms:
 
     def _start(self, key_bits, table, override, override_id, given):
         """Every copy starts its first episode; where ``given``, under the ``override`` context."""
-        cenv = contextual_env(self.env, self.schedule, table)
+        cenv = contextual_env(self.env, self.schedule, table, self.changes)
         num_envs = self.num_envs
 
         def start(copy, vector, context_id, use_given):
@@ -99,10 +105,15 @@ class VectorPrograms:
         return state, self._steps(state, timestep)
 
     def _advance(self, carry, actions, table):
-        cenv = contextual_env(self.env, self.schedule, table)
+        cenv = contextual_env(self.env, self.schedule, table, self.changes)
         state = jax.vmap(self.packer.unpack)(carry)
         state, timestep = cenv.step_copies(state, actions)
         return state, self._steps(state, timestep)
+
+    @property
+    def _sends_context(self) -> bool:
+        """Whether the host needs the copies' context values: drawn at reset, or moved by changes."""
+        return self.schedule.resamples or self.changes is not None
 
     def _steps(self, state, timestep) -> CopySteps:
         def flat(x):
@@ -116,13 +127,14 @@ class VectorPrograms:
             flat(timestep.final_obs),
             timestep.info["context_id"].astype(jnp.int32),
             state.context_id.astype(jnp.int32),
-            jax.vmap(self.space.to_array)(state.context) if self.schedule.resamples else None,
+            jax.vmap(self.space.to_array)(state.context) if self._sends_context else None,
             env_step_info(timestep),
         )
 
 
 class ContextualVectorEnv(gymnasium.vector.VectorEnv):
-    """``num_envs`` copies of a JAX environment with per-copy contexts (arguments as the single env)."""
+    """``num_envs`` copies of a JAX environment with per-copy contexts (arguments as the single env;
+    with ``changes``, ``info["context"]`` holds each copy's value at this step)."""
 
     metadata = {
         "autoreset_mode": AutoresetMode.SAME_STEP,
@@ -142,6 +154,7 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         obs_context_noise: float = 0.0,
         max_steps: int | None = None,
         render_mode: str | None = None,
+        changes: Change | None = None,
         **env_kwargs: Any,
     ):
         check_count("num_envs", num_envs)
@@ -150,10 +163,10 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         view = ContextView(
             obs_context_features, obs_context_as_dict, obs_context_normalize, obs_context_noise
         )
-        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs)
+        made = build_setup(env_id, contexts, context_selector, view, max_steps, env_kwargs, changes)
         if not isinstance(made.env, Env):
             raise TypeError(f"{made.env.name} is a host environment; use make_vector_env for it")
-        self.env, self.schedule = made.env, made.schedule
+        self.env, self.schedule, self.changes = made.env, made.schedule, made.changes
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.obs_context_as_dict = obs_context_as_dict
@@ -171,10 +184,11 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             if all(isinstance(i, (int, np.integer)) for i in ids)
             else np.asarray(ids, object)
         )
-        program_key = self.schedule.selection_key
         self.programs = shared_program(
-            None if program_key is None else ("vector", self.env, program_key, self.num_envs),
-            lambda: VectorPrograms(self.env, self.schedule, self.num_envs),
+            program_key(
+                self.schedule.selection_key, "vector", self.env, self.num_envs, self.changes
+            ),
+            lambda: VectorPrograms(self.env, self.schedule, self.num_envs, self.changes),
         )
         self.packer = self.programs.packer
         self._table_host = context_table(self.schedule)
@@ -220,8 +234,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         return info
 
     def _update_values(self, steps: CopySteps, changed: np.ndarray) -> None:
-        """The context values of the copies whose episode changed: from the set, or as they came back."""
-        if self.schedule.resamples:
+        """The context values of the copies whose episode (or, with changes, context) changed: from
+        the set, or as they came back."""
+        if steps.context is not None:
             fresh = steps.context
         else:
             fresh = self._table_host[steps.context_id]
@@ -296,8 +311,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
         self._carry, rows = self.programs.step(self._carry, self.check(actions), self.table)
         steps = self.programs.frame.unpack_host(np.asarray(rows))
         done = steps.terminated | steps.truncated
-        if done.any():
-            self._update_values(steps, done)
+        changed = done if self.changes is None else self._everyone
+        if changed.any():
+            self._update_values(steps, changed)
         info = self._info(steps)
         if done.any():
             info["final_obs"] = self._observations(steps.final_obs)

@@ -57,7 +57,9 @@ class CARLEnv(gymnasium.Wrapper):
     ``obs_context_as_dict``: the context part of the observation as a dict of features (default) or a
     vector. ``context_selector``: a selector class (built with ``contexts`` and
     ``context_selector_kwargs``) or instance; None is round robin. Other keyword arguments (``max_steps``,
-    ``obs_context_normalize``, ``obs_context_noise``, family options) go to ``ContextualGymEnv``.
+    ``obs_context_normalize``, ``obs_context_noise``, ``changes``, family options) go to
+    ``ContextualGymEnv``; with ``changes`` (contexts that move within an episode, contextrl's),
+    ``context`` follows the value each step ran under.
     """
 
     env_id: ClassVar[str]  # the contextrl registry id this class runs
@@ -303,6 +305,8 @@ class CARLEnv(gymnasium.Wrapper):
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
+        if self.env.changes is not None:
+            self._context = self._space().outward(info["context"])
         return self._observation(obs), reward, terminated, truncated, info
 
     def _observation(self, obs) -> dict[str, Any]:
