@@ -19,12 +19,10 @@ from typing import Any
 import contextrl as crl
 from contextrl.agents import get_agent, registered_agents
 from contextrl.experiments.compare import compare_runs
-from contextrl.experiments.executors import connect
-from contextrl.experiments.planning import describe_plan
-from contextrl.experiments.protocol import PROTOCOLS, protocol_of
+from contextrl.experiments.protocol import PROTOCOLS
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.reports import learning_verdict
-from contextrl.experiments.runner import carry_on, open_run, prepare, report
+from contextrl.experiments.runner import prepare, preview, report, run_experiment
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import (
     SpecError,
@@ -33,7 +31,6 @@ from contextrl.experiments.spec import (
     parse_assignments,
     parse_distribution,
 )
-from contextrl.experiments.tensorboard import TensorBoardLog
 
 # The main job: CartPole with the pole length varied, hidden vs concat agents, a train/test split with
 # held-out and longer/shorter poles; a few minutes on 2 CPU cores.
@@ -257,6 +254,12 @@ class _Interrupt:
         self.previous = signal.signal(signal.SIGINT, lambda signum, frame: self.stop())
         threading.Thread(target=self._wait, name="contextrl-interrupt", daemon=True).start()
 
+    def watch(self, run: RunDir, flush) -> None:
+        """From now on an interrupt names ``run`` to resume and first calls ``flush`` (a log's)."""
+        self.run_path = run.path
+        if flush is not None:
+            self.on_exit.append(flush)
+
     def _wait(self) -> None:
         while data := self._reader.recv(64):
             if signal.SIGINT in data:
@@ -281,40 +284,6 @@ class _Interrupt:
         self._reader.shutdown(socket.SHUT_RDWR)
 
 
-def _unwritable(args, reason: str, filename) -> SpecError:
-    where = f"--out {args.out}" if args.out else f"--root {args.root}"
-    return SpecError(
-        f"{where}: cannot create the run directory ({reason}: {filename}); choose a writable folder"
-    )
-
-
-def _create_run(spec, args) -> RunDir:
-    try:
-        return RunDir.create(spec, root=args.root, out=args.out)
-    except FileExistsError as error:
-        raise SpecError(str(error)) from None
-    except OSError as error:
-        raise _unwritable(args, error.strerror or str(error), error.filename) from None
-
-
-def _check_new_run(spec, args) -> Path:
-    """The folder :func:`_create_run` would make, checked without creating anything (a dry run): one
-    that holds a run or is a file, or whose nearest existing parent is not a writable folder, is
-    refused."""
-    try:
-        path = RunDir.new_path(spec, root=args.root, out=args.out)
-    except FileExistsError as error:
-        raise SpecError(str(error)) from None
-    parent = path
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise _unwritable(args, "Not a directory", path)
-    if not os.access(parent, os.W_OK):
-        raise _unwritable(args, "Permission denied", parent)
-    return path
-
-
 def _refuse_conflicts(args: argparse.Namespace) -> None:
     """Flags that cannot both apply, refused rather than one of them ignored."""
     if args.estimate and not args.dry_run:
@@ -328,75 +297,37 @@ def _refuse_conflicts(args: argparse.Namespace) -> None:
             f"--out {args.out} names the run directory, so --root {args.root} would be ignored; "
             "give one of them"
         )
-    if args.resume and not (Path(args.resume) / "spec.yaml").is_file():
-        what = "no run directory" if Path(args.resume).is_dir() else "no such folder"
-        raise SpecError(
-            f"--resume {args.resume}: {what} (a run directory holds spec.yaml); "
-            "give the folder `contextrl run` printed"
-        )
 
 
 def run_command(args: argparse.Namespace) -> int:
     _refuse_conflicts(args)
-    progress = not args.quiet
+    if args.resume:
+        _refuse_spec_options(args)
+        target = {"resume": args.resume}
+    else:
+        notices: list[str] = []
+        spec = prepare(spec_from_args(args, notices))
+        if spec.trains_agents and _budget_typed(args):
+            notices.append(spec.budget_note())
+        for notice in filter(None, notices):
+            print(notice, file=sys.stderr)
+        target = {"spec": spec, "out": args.out, "root": args.root}
+    where = {"executor": args.executor, "address": args.address}
     interrupt = _Interrupt()
     try:
-        if args.resume and args.dry_run:  # what is left, read without writing anything
-            _refuse_spec_options(args)
-            run = RunDir(args.resume)
-            spec = prepare(run.spec())
-        elif args.resume:
-            _refuse_spec_options(args)
-            run, spec = open_run(resume=args.resume)
-        else:
-            notices: list[str] = []
-            spec = prepare(spec_from_args(args, notices))
-            if spec.trains_agents and _budget_typed(args):
-                notices.append(spec.budget_note())
-            for notice in filter(None, notices):
-                print(notice, file=sys.stderr)
-        ray_started = connect(
-            args.executor,
-            args.address,
-            on_ray=protocol_of(spec).runs_on_ray,
-            join=not args.dry_run,
-            verbose=args.verbose,
-        )
         if args.dry_run:  # checked as the run is up to here; then nothing is created
-            where = run.path if args.resume else _check_new_run(spec, args)
-            finished = run.finished() if args.resume else None
-            print(
-                describe_plan(
-                    spec, where, estimate=args.estimate, root=args.root, finished=finished
-                )
-            )
+            print(preview(**target, **where, estimate=args.estimate))
             return 0
-        if not args.resume:
-            run = _create_run(spec, args)
-            if progress:
-                print(f"run directory: {run.path}", file=sys.stderr, flush=True)
-        interrupt.run_path = run.path
-        if ray_started:
-            (run.path / "ray").mkdir(exist_ok=True)
-            with open(run.path / "ray" / "ray.log", "a") as log:
-                log.write(ray_started)
-        logger = None
-        if args.log == "tensorboard":
-            logger = TensorBoardLog(run).start()
-            interrupt.on_exit.append(logger.sync)
-            print(f"tensorboard: tensorboard --logdir {logger.folder}", file=sys.stderr)
-        summary = carry_on(
-            run,
-            spec,
-            executor=args.executor,
-            address=args.address,
+        run, summary = run_experiment(
+            **target,
+            **where,
             max_chunks=args.max_chunks,
-            progress=progress,
+            progress=not args.quiet,
             verbose=args.verbose,
+            log=args.log,
+            on_start=interrupt.watch,
         )
-        if logger is not None:
-            logger.stop()
-    except FileNotFoundError as error:
+    except (FileNotFoundError, FileExistsError) as error:
         raise SpecError(str(error)) from None
     finally:
         interrupt.close()
