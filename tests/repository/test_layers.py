@@ -33,7 +33,16 @@ LAYERS = [
         ],
     ),
     ("envs", ["contextrl.envs", "contextrl.render"]),
-    ("gymnasium", ["contextrl.gymnasium", "contextrl.carl", "contextrl.gymnax", "contextrl"]),
+    (
+        "gymnasium",
+        [
+            "contextrl.gymnasium",
+            "contextrl.carl",
+            "contextrl.gymnax",
+            "contextrl.torch",
+            "contextrl",
+        ],
+    ),
     ("agents", ["contextrl.agents"]),
     ("analysis", ["contextrl.analysis"]),
     ("experiments", ["contextrl.experiments"]),
