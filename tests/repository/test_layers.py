@@ -52,8 +52,8 @@ LAYERS = [
 
 # Inside experiments, the order the modules build on each other (lowest first): specs, the protocol
 # record, their expansion into a plan of trials, running a chunk, run directories and more seeds for
-# one (starting Ray, and where Ray's output goes in a run), reports, the protocols, executors, the
-# runner, the commands around it, and the package. The protocols live in their own folder,
+# one (starting Ray, and where Ray's output goes in a run), reports, the protocols, executors, a
+# run's preview and its TensorBoard log, the runner, the commands around it, and the package. The protocols live in their own folder,
 # protocols/, whose package registers them.
 EXPERIMENTS = [
     "spec",
@@ -74,11 +74,11 @@ EXPERIMENTS = [
     "protocols.curriculum",
     "protocols",
     "executors",
-    "runner",
     "planning",
+    "tensorboard",
+    "runner",
     "reevaluate",
     "compare",
-    "tensorboard",
     "commands",
 ]
 
