@@ -12,8 +12,11 @@ counts the step in which the episode terminates by the fraction of it spent befo
 ``termination_margin`` crosses zero (interpolated linearly between the states before and after the
 step), and nothing after it. The return is then continuous in the context where a terminating step
 earns what a step that goes on earns (CartPole's +1), and its derivative is that of how long the
-episode lasts. A discrete policy's actions have no derivative: the gradient holds them where they are,
-which is the return's derivative between the contexts at which an action switches.
+episode lasts. Where the terminating step earns more, a goal's reward (Acrobot's 0 against −1 a step,
+MountainCarContinuous's +100), the environment's ``termination_bonus(context)`` names the excess: it
+counts in full and only the rest by the fraction. A discrete policy's actions have no derivative: the
+gradient holds them where they are, which is the return's derivative between the contexts at which an
+action switches.
 """
 
 from __future__ import annotations
@@ -66,6 +69,7 @@ def return_of_context(
     differentiate or ``vmap`` over many values."""
     context, names = _checked(env, policy, context, key, horizon, features)
     reset_key, steps_key = jax.random.split(key)
+    termination_bonus = getattr(env, "termination_bonus", lambda context: 0.0)
 
     def return_of(values):
         ctx = dataclasses.replace(
@@ -77,15 +81,18 @@ def return_of_context(
             state, obs, alive, total = carry
             before = env.termination_margin(state.physics, ctx)
             state, ts = env.advance(step_key, state, policy(obs), ctx)
-            weight = alive
+            reward = ts.reward
             if before is not None:  # the step that ends the episode counts by its part inside
                 ending = ts.terminated & (alive > 0)
                 crossed = jnp.where(
                     ending, before - env.termination_margin(state.physics, ctx), 1.0
                 )
-                weight = alive * jnp.where(ending, jnp.clip(before / crossed, 0.0, 1.0), 1.0)
+                part = jnp.where(ending, jnp.clip(before / crossed, 0.0, 1.0), 1.0)
+                bonus = jnp.where(ending, termination_bonus(ctx), 0.0)
+                reward = part * (reward - bonus) + bonus
+            total = total + alive * reward
             alive = alive * (1.0 - ts.terminated)
-            return (state, ts.obs, alive, total + weight * ts.reward), None
+            return (state, ts.obs, alive, total), None
 
         carry = (state, start.obs, jnp.float32(1.0), jnp.float32(0.0))
         (_, _, _, total), _ = jax.lax.scan(step, carry, jax.random.split(steps_key, horizon))

@@ -2,6 +2,13 @@
 
 In the original equations the second link's length never enters the dynamics (its centre of mass does);
 here it sets the goal height together with the first link's length, so it acts (CARL's does nothing).
+
+The dynamics are differentiable in every float feature (``contextrl.core.gradient``): the Runge–Kutta
+step is smooth, the angle wrap shifts by whole turns (the physics and observation are periodic), and the
+torque noise is ``U(−max, max)`` of a fixed key, linear in ``torque_noise_max``. A speed clipped at
+``MAX_VEL_1``/``MAX_VEL_2`` has no derivative in the state, so a clipped step zeros the gradient through
+that joint's speed; the two ``MAX_VEL`` features act only through such steps. Reaching the goal earns 0
+where a step that goes on earns −1: the rollout counts that 1 as :meth:`Acrobot.termination_bonus`.
 """
 
 from __future__ import annotations
@@ -199,6 +206,7 @@ class Acrobot(Env):
     context_type = AcrobotContext
     default_max_steps = 500
     stochastic_transition = True
+    differentiable = True
 
     @property
     def action_space(self) -> Discrete:
@@ -228,3 +236,15 @@ class Acrobot(Env):
 
     def observe(self, state, context) -> jax.Array:
         return observation(jnp, state)
+
+    def termination_margin(self, state, context) -> jax.Array:
+        """How far the tip is below the goal height (negative above it)."""
+        theta1, theta2 = state[0], state[1]
+        height = -context.LINK_LENGTH_1 * jnp.cos(theta1) - context.LINK_LENGTH_2 * jnp.cos(
+            theta1 + theta2
+        )
+        return GOAL_HEIGHT - height
+
+    def termination_bonus(self, context) -> float:
+        """What the step that reaches the goal earns beyond one that goes on (0 against −1)."""
+        return 1.0

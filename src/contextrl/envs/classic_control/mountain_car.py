@@ -2,6 +2,13 @@
 
 The default goal is gymnasium's 0.5 (CARL swaps the goals of the discrete and continuous versions).
 The car's physics are shared with MountainCarContinuous, which differs only in how it is pushed.
+
+Both cars are differentiable in their float features (``contextrl.core.gradient``) almost everywhere,
+with two stops that zero the gradient through the speed: a speed clipped at ``max_speed`` (which acts
+only through such steps), and the left wall, where the position is clipped to ``min_position`` and the
+speed reset to 0. The wall is also a jump: in a context where the car just reaches it, it is stopped one
+step sooner or later, so the return is discontinuous there and its gradient holds only between such
+contexts. Reaching the goal ends the episode; :func:`goal_margin` measures how far from it the car is.
 """
 
 from __future__ import annotations
@@ -87,6 +94,13 @@ def hill_step(xp, state, push, context) -> tuple[jax.Array, jax.Array]:
     return xp.stack([position, velocity]), reached
 
 
+def goal_margin(state, context) -> jax.Array:
+    """How far the car is from the goal: the larger of its shortfall in position and in velocity
+    (negative once both are reached)."""
+    position, velocity = state[0], state[1]
+    return jnp.maximum(context.goal_position - position, context.goal_velocity - velocity)
+
+
 def hill_observation_space(context_class) -> Box:
     features = context_class.space.features
     low = [features["min_position"].lower, -features["max_speed"].upper]
@@ -114,6 +128,7 @@ class MountainCar(Env):
 
     context_type = MountainCarContext
     default_max_steps = 200
+    differentiable = True
 
     @property
     def action_space(self) -> Discrete:
@@ -131,6 +146,9 @@ class MountainCar(Env):
 
     def observe(self, state, context) -> jax.Array:
         return state
+
+    def termination_margin(self, state, context) -> jax.Array:
+        return goal_margin(state, context)
 
     def host_transition(self, state, action: int, context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""

@@ -1,7 +1,9 @@
 """MountainCarContinuous with an explicit context: gymnasium's ``MountainCarContinuous-v0`` at the default.
 
 Gymnasium writes the hill's pull 0.0025 as a constant in this version's equation; here it is the
-``gravity`` feature shared with MountainCar. The default goal is gymnasium's 0.45.
+``gravity`` feature shared with MountainCar. The default goal is gymnasium's 0.45. It is differentiable
+as MountainCar is (see there: the speed clip and the left wall stop the gradient through the speed); the
+goal's +100 counts in full as :meth:`MountainCarContinuous.termination_bonus`.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from contextrl.core.env import Env
 from contextrl.core.spaces import Box
 from contextrl.envs.classic_control.mountain_car import (
     HillContext,
+    goal_margin,
     hill_init,
     hill_observation_space,
     hill_step,
@@ -49,6 +52,7 @@ class MountainCarContinuous(Env):
 
     context_type = MountainCarContinuousContext
     default_max_steps = 999
+    differentiable = True
 
     @property
     def action_space(self) -> Box:
@@ -66,6 +70,13 @@ class MountainCarContinuous(Env):
 
     def observe(self, state, context) -> jax.Array:
         return state
+
+    def termination_margin(self, state, context) -> jax.Array:
+        return goal_margin(state, context)
+
+    def termination_bonus(self, context) -> float:
+        """What the step that reaches the goal earns beyond one that goes on (the +100)."""
+        return 100.0
 
     def host_transition(self, state, action: list[float], context):
         """The same step on Python floats (see ``contextrl.core.scalar``)."""
