@@ -1,6 +1,7 @@
 """Agents from the registry in every protocol: SAC from the command line, a user-registered agent,
 per-environment defaults, and clear refusals."""
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -15,6 +16,7 @@ from contextrl.agents import (
 )
 from contextrl.cli import main as cli_main
 from contextrl.experiments import SpecError, parse_spec
+from tests.helpers.report_tables import check_report, read_sections
 
 
 def test_registry_lists_agents_and_refuses_mismatches():
@@ -74,6 +76,12 @@ def test_sac_runs_the_sensitivity_protocol_from_the_cli(tmp_path):
     assert sorted(results["magnitude"]) == [0.5, 1.0]
     assert results["ctx.g"].tolist() == [10.0, 5.0]  # the shared default context, then A = 0.5
     assert (out / "checkpoints" / "default-hidden-s0.npz").exists()
+    # Pendulum's dynamics are differentiable: the agent's return gradient comes beside the sweep
+    training = pd.read_parquet(next((out / "training").glob("*.parquet")))
+    assert np.isfinite(training[["gradient.g", "difference.g"]].to_numpy()).all()
+    rows = read_sections(out / "report.html")["Return gradient"]["tables"]
+    assert [r["feature"] for r in rows["Return gradient in A at the default context"]] == ["g"]
+    assert check_report(out) > 0  # each value a direct computation from results and training
     spec = parse_spec({"protocol": "sensitivity", "env": "Pendulum", "agent": "sac"})
     # Pendulum is one of the paper's SAC environments: its setting is the base
     assert spec.agent_config("hidden") == sac.paper_config("Pendulum")

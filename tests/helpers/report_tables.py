@@ -197,6 +197,35 @@ def _check_sensitivity(rows: list[dict], results: pd.DataFrame) -> int:
     return checked
 
 
+def _check_gradient(rows: list[dict], results: pd.DataFrame, training: pd.DataFrame) -> int:
+    """The return gradient table: per variant and feature, the trained agents' mean gradient and
+    central difference, their largest gap, and the sweep's secant between the magnitudes beside 1."""
+    checked = 0
+    for r in rows:
+        trials = training[training["variant"] == r["variant"]].dropna(
+            subset=[f"gradient.{r['feature']}"]
+        )
+        gradient = trials[f"gradient.{r['feature']}"]
+        difference = trials[f"difference.{r['feature']}"]
+        assert r["seeds"] == str(len(trials))
+        assert point(r["dR/dA: gradient, mean [95% CI over seeds]"]) == float(
+            shown(gradient.mean())
+        )
+        assert r["dR/dA (central difference, mean)"] == shown(difference.mean())
+        assert r["largest |gradient − difference|"] == shown((gradient - difference).abs().max())
+        mine = results[
+            (results["variant"] == r["variant"])
+            & results["feature"].isin([r["feature"], "(default)"])
+        ]
+        means = mine.groupby(["magnitude", "seed"])["return"].mean().groupby("magnitude").mean()
+        below, above = means.index[means.index < 1], means.index[means.index > 1]
+        low, high = (below.max() if len(below) else 1.0), (above.min() if len(above) else 1.0)
+        assert r["sweep slope between"] == f"A = {low:g} to {high:g}"
+        assert r["sweep slope"] == shown((means[high] - means[low]) / (high - low))
+        checked += 6
+    return checked
+
+
 def _check_regions(rows: list[dict], results: pd.DataFrame) -> int:
     checked = 0
     for r in rows:
@@ -296,6 +325,8 @@ def check_report(out: str | Path) -> int:
                 checked += _check_per_context(caption, rows, results)
             elif caption == "Return per feature":
                 checked += _check_sensitivity(rows, results)
+            elif caption == "Return gradient in A at the default context":
+                checked += _check_gradient(rows, results, training)
             elif caption == "Aggregates":  # the optimality gap: the general agent, the specialists
                 variant = title.removeprefix("Optimality gap (").removesuffix(")")
                 agents = {"general": f"general, {variant}", "specialists": f"specialist, {variant}"}

@@ -42,14 +42,18 @@ def context_gradient(
     key: jax.Array,
     horizon: int,
     features: Sequence[str] | None = None,
+    params: Any = None,
 ) -> dict[str, float]:
     """d(return)/d(feature) at ``context`` for each float feature (or those in ``features``).
 
     ``policy`` maps an observation to an action; it acts for ``horizon`` steps (at most the time limit)
     of one episode started by ``env.reset`` under ``key``, the steps drawing from keys split from it.
+    With ``params``, it is a trained agent's policy called as the agents' policies are,
+    ``policy(params, obs, context, key)``: a policy that sees the context is differentiated through
+    its context input too.
     """
     return_of, values = return_of_context(
-        env, policy, context, key=key, horizon=horizon, features=features
+        env, policy, context, key=key, horizon=horizon, features=features, params=params
     )
     gradient = jax.jit(jax.jacfwd(return_of))(values)
     return {name: float(gradient[name]) for name in values}
@@ -63,6 +67,7 @@ def return_of_context(
     key: jax.Array,
     horizon: int,
     features: Sequence[str] | None = None,
+    params: Any = None,
 ) -> tuple[Callable[[dict[str, jax.Array]], jax.Array], dict[str, jax.Array]]:
     """The return :func:`context_gradient` differentiates, as a pure function of a dict of the float
     features' values (the others stay at ``context``'s), and that dict at ``context``: to compile,
@@ -80,7 +85,12 @@ def return_of_context(
         def step(carry, step_key):
             state, obs, alive, total = carry
             before = env.termination_margin(state.physics, ctx)
-            state, ts = env.advance(step_key, state, policy(obs), ctx)
+            if params is None:
+                action = policy(obs)
+            else:
+                step_key, action_key = jax.random.split(step_key)
+                action = policy(params, obs, ctx, action_key)
+            state, ts = env.advance(step_key, state, action, ctx)
             reward = ts.reward
             if before is not None:  # the step that ends the episode counts by its part inside
                 ending = ts.terminated & (alive > 0)

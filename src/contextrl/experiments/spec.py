@@ -321,6 +321,11 @@ class CommonSpec:
         """The curriculum ``name`` of a trial over the contexts ``pool`` (protocols that have one)."""
         raise SpecError(f"the {self.protocol} protocol trains no agent under a curriculum ({name})")
 
+    def gradient_features(self, env) -> tuple[str, ...]:
+        """Float features of ``env`` whose return gradient each trained agent's trial also gives at
+        the default context (``contextrl.core.gradient``); none by default."""
+        return ()
+
     def agent_entry(self):
         """The registered agent of this spec."""
         try:

@@ -20,9 +20,11 @@ import pandas as pd
 from contextrl.agents import evaluate, get_agent
 from contextrl.agents.host import HostCollector
 from contextrl.agents.networks import ContextInput, context_input
+from contextrl.core.gradient import return_of_context
 from contextrl.experiments.plan import Plan, context_columns, stack_sets, trial_columns, trial_key
 
 TRAIN_EVAL_CONTEXTS = 16
+GRADIENT_STEP = 0.01  # the central difference beside each gradient: A = 1 ± 0.01
 
 
 @dataclasses.dataclass
@@ -64,6 +66,7 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool, curri
         spec.eval_episodes,
         variant if agent.trained else "",  # an untrained policy ignores the context input
         tested_on_training,
+        spec.gradient_features(env),
         len(template),
         env.context_space.varying(template) if len(template) > 1 else (),
         # a curriculum holds its pool and options: the spec that makes them keys it
@@ -77,6 +80,8 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool, curri
     random_policy = get_agent("random").make_policy(None, env, template)
     taught = spec.make_curriculum(curriculum, template) if curriculum else None
     train = agent.make_train(config, env, taught or template) if agent.trained else None
+    names = spec.gradient_features(env) if agent.trained else ()
+    slopes = _slopes(env, policy, names, episodes) if names else None
 
     def one(key, train_ctx, test_ctx):
         train_key, eval_key, train_eval_key = jax.random.split(key, 3)
@@ -95,19 +100,62 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool, curri
         else:
             trained = evaluate(policy, params, env, own, episodes, train_eval_key).mean()
         random = evaluate(random_policy, None, env, own, episodes, train_eval_key).mean()
-        return returns, steps, curve, params, trained, random, trace
+        slope = {} if slopes is None else slopes(params, jax.random.fold_in(eval_key, 1))
+        return returns, steps, curve, params, trained, random, trace, slope
 
     _COMPILED[key] = jax.jit(jax.vmap(one))
     return _COMPILED[key]
 
 
+def _slopes(env, policy, names, episodes):
+    """``(params, key) -> {column: value}``: per feature in ``names``, the derivative of the mean
+    return over ``episodes`` episodes with respect to its magnitude A (feature = A × default) at the
+    default context, from one forward-mode pass (``gradient.NAME``), and the central difference at
+    A = 1 ± ``GRADIENT_STEP`` over the same episodes and draws (``difference.NAME``)."""
+    default = env.context_space.default()
+    scale = {name: float(getattr(default, name)) for name in names}
+
+    def slopes(params, key):
+        keys = jax.random.split(key, episodes)
+
+        def mean_return(magnitudes):
+            def episode(episode_key):
+                return_of, _ = return_of_context(
+                    env,
+                    policy,
+                    default,
+                    key=episode_key,
+                    horizon=env.max_steps,
+                    features=names,
+                    params=params,
+                )
+                return return_of({n: magnitudes[n] * scale[n] for n in names})
+
+            return jax.vmap(episode)(keys).mean()
+
+        ones = {name: jax.numpy.float32(1.0) for name in names}
+        gradient = jax.jacfwd(mean_return)(ones)
+        # every feature at 1 + step, then every one at 1 - step: one vmapped rollout for all
+        moved = np.concatenate([np.eye(len(names)), -np.eye(len(names))]) * GRADIENT_STEP + 1.0
+        returns = jax.vmap(mean_return)({n: moved[:, i] for i, n in enumerate(names)})
+        columns = {}
+        for i, name in enumerate(names):
+            up, down = returns[i], returns[len(names) + i]
+            columns[f"gradient.{name}"] = gradient[name]
+            columns[f"difference.{name}"] = (up - down) / (2 * GRADIENT_STEP)
+        return columns
+
+    return slopes
+
+
 def _train_and_evaluate(spec, trials, env, template, keys, train_batch, test_batch, same):
     """(returns (trials × test contexts), curve steps, curves (trials × points), per-trial params,
     per-trial (trained, random) mean return on the training contexts, the curriculum's columns of
-    the curves: name → trials × points)."""
+    the curves: name → trials × points, the return's slopes in the context: column → trials)."""
     first = trials[0]
     function = _compiled(spec, first.variant, env, template, same, first.curriculum)
-    returns, steps, curves, params, trained, random, trace = function(keys, train_batch, test_batch)
+    outputs = function(keys, train_batch, test_batch)
+    returns, steps, curves, params, trained, random, trace, slopes = outputs
     params = jax.device_get(params)
     per_trial = [
         None if params is None else jax.tree_util.tree_map(lambda leaf, i=i: leaf[i], params)
@@ -121,6 +169,7 @@ def _train_and_evaluate(spec, trials, env, template, keys, train_batch, test_bat
         per_trial,
         own,
         curriculum_columns(trace),
+        {column: np.asarray(values, np.float64) for column, values in slopes.items()},
     )
 
 
@@ -199,7 +248,7 @@ def _host_train_and_evaluate(plan: Plan, trials, env, template, keys):
             )
         )
         params.append(trial_params)
-    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own), {}
+    return np.stack(returns), steps, np.asarray(curves), params, np.asarray(own), {}, {}
 
 
 def _like(contexts, template):
@@ -222,14 +271,14 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
     template = plan.sets[trials[0].template].contexts
     keys = jax.numpy.stack([trial_key(spec.seed, t.id) for t in trials])
     if spec.host:
-        returns, steps, curves, params, own, taught = _host_train_and_evaluate(
+        returns, steps, curves, params, own, taught, slopes = _host_train_and_evaluate(
             plan, trials, env, template, keys
         )
     else:
         train_batch = stack_sets([_like(plan.sets[t.train_set].contexts, template) for t in trials])
         test_batch = stack_sets([plan.sets[t.test_set].contexts for t in trials])
         same = all(t.test_set == t.train_set for t in trials)
-        returns, steps, curves, params, own, taught = _train_and_evaluate(
+        returns, steps, curves, params, own, taught, slopes = _train_and_evaluate(
             spec, trials, env, template, keys, train_batch, test_batch, same
         )
     seconds = time.perf_counter() - start
@@ -269,6 +318,7 @@ def run_chunk(plan: Plan, chunk: list[int]) -> ChunkResult:
             "seed": [t.seed for t in trials],
             "train_return": own[:, 0].astype(np.float64),
             "random_return": own[:, 1].astype(np.float64),
+            **slopes,
         }
     )
     checkpoint = {

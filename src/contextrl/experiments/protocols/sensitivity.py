@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from contextrl.analysis import metrics, plots
-from contextrl.analysis.intervals import FIXED
+from contextrl.analysis.intervals import FIXED, bootstrap_ci
 from contextrl.analysis.report import Section
 from contextrl.analysis.scores import DEFAULT_LABEL, magnitude_lines, natural_key
 from contextrl.context.features import ContextError
@@ -22,6 +22,7 @@ from contextrl.experiments.spec import (
     check_number,
     names_tuple,
 )
+from contextrl.experiments.trials import GRADIENT_STEP
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,6 +33,9 @@ class SensitivitySpec(CommonSpec):
 
     features: tuple[str, ...] | str = "all"  # "all": every numeric feature with a non-zero default
     magnitudes: tuple[float, ...] = tuple(round(0.1 * i, 1) for i in range(1, 23))
+    # beside the sweep: each agent's return gradient in A at the default context, where the
+    # environment's dynamics are differentiable (``contextrl.core.gradient``)
+    gradient: bool = True
 
     test_contexts = FIXED  # the sweep of magnitudes is the claim's own set
     vary_field = None  # --vary names the features to scale (_vary)
@@ -76,6 +80,12 @@ class SensitivitySpec(CommonSpec):
                 "evaluated there"
             )
         return kept, skipped
+
+    def gradient_features(self, env) -> tuple[str, ...]:
+        if not (self.gradient and getattr(env, "differentiable", False)):
+            return ()
+        space = env.context_space
+        return tuple(n for n in self.feature_names() if space.features[n].kind == "float")
 
     def feature_names(self) -> tuple[str, ...]:
         space = self.space()
@@ -123,7 +133,75 @@ def _outline(spec: SensitivitySpec) -> tuple[dict, list]:
     return {"default": 1, "scaled": 1 + len(kept)}, grid(spec, "default", "default", "scaled")
 
 
-def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) -> list[Section]:
+def _sweep_slope(cells: pd.DataFrame, feature: str, variant: str) -> tuple[str, float]:
+    """The sweep's own slope at A = 1: the mean return's change between the magnitudes nearest 1 on
+    either side (the default context where a side has none), over the seeds' mean returns."""
+    rows = cells[(cells["variant"] == variant) & (cells["feature"].isin([feature, DEFAULT_LABEL]))]
+    means = rows.groupby("magnitude")["return"].mean()
+    below = [m for m in means.index if m < 1.0] or [1.0]
+    above = [m for m in means.index if m > 1.0] or [1.0]
+    low, high = max(below), min(above)
+    if low == high:
+        return "", np.nan
+    return f"A = {low:g} to {high:g}", float((means[high] - means[low]) / (high - low))
+
+
+def _gradient_section(spec: SensitivitySpec, cells: pd.DataFrame, training) -> Section | None:
+    """Each agent's return gradient in A at the default context beside its central difference and
+    the sweep's slope there: one differentiated pass against the sweep's grid of rollouts."""
+    columns = [c for c in training.columns if c.startswith("gradient.")]
+    if not columns:
+        return None
+    rows = []
+    for variant, trials in training.groupby("variant", sort=False):
+        for column in columns:
+            feature = column.removeprefix("gradient.")
+            gradient = trials[column].to_numpy(float)
+            kept = np.isfinite(gradient)  # trained agents only
+            if not kept.any():
+                continue
+            gradient = gradient[kept]
+            difference = trials[f"difference.{feature}"].to_numpy(float)[kept]
+            interval = bootstrap_ci(
+                gradient[:, None],
+                metrics.aggregate_mean,
+                reps=spec.bootstrap_reps,
+                seed=spec.seed,
+            )
+            where, slope = _sweep_slope(cells, feature, variant)
+            rows.append(
+                {
+                    "feature": feature,
+                    "variant": variant,
+                    "seeds": len(gradient),
+                    "dR/dA: gradient, mean [95% CI over seeds]": str(interval),
+                    "dR/dA (central difference, mean)": float(np.nanmean(difference)),
+                    "largest |gradient − difference|": float(
+                        np.nanmax(np.abs(gradient - difference))
+                    ),
+                    "sweep slope": slope,
+                    "sweep slope between": where,
+                }
+            )
+    magnitudes = len([m for m in spec.magnitudes if m != 1.0])
+    text = [
+        "The derivative of each agent's mean return over "
+        f"{spec.eval_episodes} episodes with respect to each feature's magnitude A at the default "
+        "context (A = 1), from one forward-mode differentiated rollout per episode "
+        "(contextrl.core.gradient: the agent's deterministic policy, the episodes' draws held fixed, "
+        "the terminating step counted by its part before the threshold), against the sweep's "
+        f"{magnitudes} magnitudes × {spec.eval_episodes} episodes of rollouts per feature. "
+        f"The central difference at A = 1 ± {GRADIENT_STEP:g} over the same episodes and draws "
+        "checks the derivative; the sweep's slope between its magnitudes nearest 1 is a secant "
+        "over other draws, so it differs where the return is not smooth in A (an action that "
+        "switches, an episode that ends at another step)."
+    ]
+    return Section("Return gradient", text, [("Return gradient in A at the default context", rows)])
+
+
+def _sections(
+    spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves, training=None
+) -> list[Section]:
     by_feature = magnitude_lines(cells)
     rows = []
     for feature, lines in by_feature.items():
@@ -184,7 +262,11 @@ def _sections(spec: SensitivitySpec, plan: Plan, cells: pd.DataFrame, curves) ->
     ]
     if skipped:
         text.append(f"Outside the feature bounds, so not evaluated: {', '.join(skipped)}.")
-    return [Section("Sensitivity", text, [("Return per feature", rows)], figures)]
+    sections = [Section("Sensitivity", text, [("Return per feature", rows)], figures)]
+    gradient = (
+        None if training is None or training.empty else _gradient_section(spec, cells, training)
+    )
+    return sections + ([gradient] if gradient is not None else [])
 
 
 def _vary(data: dict, items: list[str]) -> str | None:
@@ -216,5 +298,6 @@ register_protocol(
         _outline,
         vary=_vary,
         per_context_figures=False,  # its own view: return against the magnitude A per feature
+        reads_training=True,  # the agents' return gradients come with their training returns
     )
 )
