@@ -47,6 +47,13 @@ def test_distribution_parameters_are_data_one_compile_changes_what_is_drawn():
     assert 0.5 <= narrow.min() and narrow.max() <= 0.6
     assert 1.0 <= wide.min() and wide.max() <= 3.0 and wide.max() - wide.min() > 1.5
     assert set(np.asarray(only_first)) == {0} and set(np.asarray(only_last)) == {5}
+    # draws follow the weights: member 1 three times as often as member 0, the zero ones never
+    weights = jnp.asarray([1.0, 3.0, 0, 0, 0, 0])
+    draws = jax.vmap(lambda k: WeightedSet(POOL, weights)(k, 0)[1])(
+        jax.random.split(jax.random.key(5), 8192)
+    )
+    assert set(np.asarray(draws)) == {0, 1}
+    assert np.mean(np.asarray(draws) == 1) == pytest.approx(0.75, abs=0.02)  # sd 0.005
 
 
 def adr(**options):
