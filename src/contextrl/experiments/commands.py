@@ -22,7 +22,7 @@ from contextrl.experiments.compare import compare_runs
 from contextrl.experiments.protocol import PROTOCOLS
 from contextrl.experiments.reevaluate import evaluate_run
 from contextrl.experiments.reports import learning_verdict
-from contextrl.experiments.runner import prepare, preview, report, run_experiment
+from contextrl.experiments.runner import prepare, preview, report, resumable, run_experiment
 from contextrl.experiments.runs import RunDir, write_text
 from contextrl.experiments.spec import (
     SpecError,
@@ -292,6 +292,8 @@ def _refuse_conflicts(args: argparse.Namespace) -> None:
         raise SpecError(
             "--quiet and --verbose: give one (quiet: no progress lines; verbose: Ray's)"
         )
+    if args.resume:
+        resumable(args.resume)  # a folder without a run is named before any other option
     if args.out and args.root != "runs":
         raise SpecError(
             f"--out {args.out} names the run directory, so --root {args.root} would be ignored; "

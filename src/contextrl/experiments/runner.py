@@ -65,7 +65,7 @@ def new_run_path(spec: CommonSpec, *, out=None, root: str | os.PathLike = "runs"
     return path
 
 
-def _resumable(resume: str | os.PathLike) -> RunDir:
+def resumable(resume: str | os.PathLike) -> RunDir:
     """The run directory at ``resume``, refused with the folder to give where it holds no run."""
     if not (Path(resume) / "spec.yaml").is_file():
         what = "no run directory" if Path(resume).is_dir() else "no such folder"
@@ -90,7 +90,7 @@ def open_run(
     xla_cpu_workaround()  # effective when JAX has not computed anything yet here
     use_compilation_cache()
     if resume is not None:
-        run = _resumable(resume)
+        run = resumable(resume)
         finish_adding_seeds(run)  # where a process adding seeds was killed part-way
         return run, prepare(run.spec())
     spec = prepare(spec)
@@ -120,7 +120,7 @@ def preview(
     text, everything checked as a run would check it up to here; nothing is created or written."""
     if (spec is None) == (resume is None):
         raise TypeError("preview: give either a spec (a new run) or resume=RUN_DIRECTORY")
-    run = None if resume is None else _resumable(resume)
+    run = None if resume is None else resumable(resume)
     spec = prepare(run.spec() if run is not None else spec)
     connect(executor, address, on_ray=protocol_of(spec).runs_on_ray, join=False)
     where = run.path if run is not None else new_run_path(spec, out=out, root=root)
