@@ -203,6 +203,7 @@ def gradient_and_differences(return_of, values, relative_step):
     return gradient, differences
 
 
+@pytest.mark.slow  # an MJX rollout compiles for tens of seconds on the CPU
 @pytest.mark.parametrize("env_id", sorted(MJX_CASES))
 def test_mjx_gradient_equals_central_differences(env_id):
     pytest.importorskip("mujoco.mjx")
