@@ -157,6 +157,12 @@ class Env(ContextHelpers):
         terminated, zero or positive while it goes on. None for an environment that never terminates."""
         return None
 
+    def termination_bonus(self, context) -> jax.Array | float:
+        """How much more the step that ends the episode earns than a step that goes on (a goal's
+        reward). The return's gradient counts it in full and only the rest of that step's reward by
+        the fraction of the step before ``termination_margin`` crosses zero; 0 by default."""
+        return 0.0
+
     def step_info(self, state, context) -> dict:
         """Facts about ``state`` for ``TimeStep.info`` (after a step: the state before any reset)."""
         return {}

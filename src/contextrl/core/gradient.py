@@ -74,7 +74,6 @@ def return_of_context(
     differentiate or ``vmap`` over many values."""
     context, names = _checked(env, policy, context, key, horizon, features)
     reset_key, steps_key = jax.random.split(key)
-    termination_bonus = getattr(env, "termination_bonus", lambda context: 0.0)
 
     def return_of(values):
         ctx = dataclasses.replace(
@@ -98,7 +97,7 @@ def return_of_context(
                     ending, before - env.termination_margin(state.physics, ctx), 1.0
                 )
                 part = jnp.where(ending, jnp.clip(before / crossed, 0.0, 1.0), 1.0)
-                bonus = jnp.where(ending, termination_bonus(ctx), 0.0)
+                bonus = jnp.where(ending, env.termination_bonus(ctx), 0.0)
                 reward = part * (reward - bonus) + bonus
             total = total + alive * reward
             alive = alive * (1.0 - ts.terminated)
@@ -112,13 +111,17 @@ def return_of_context(
 
 
 def _differentiable_names() -> list[str]:
-    """The loaded environment classes that declare differentiable dynamics."""
+    """The loaded environment classes that declare differentiable dynamics; one whose declaration is
+    a property (it holds on some backends only, like Brax Reacher's on MJX) is named as such."""
     found, pending = set(), [Env]
     while pending:
         cls = pending.pop()
         pending.extend(cls.__subclasses__())
-        if cls.__dict__.get("differentiable"):
+        declared = cls.__dict__.get("differentiable")
+        if declared is True:
             found.add(cls.__name__)
+        elif isinstance(declared, property):
+            found.add(f"{cls.__name__} (on some backends)")
     return sorted(found)
 
 
