@@ -13,8 +13,8 @@ differs is how the arrays cross. The program returns one uint32 array, a row per
 are torch views of that JAX buffer (``torch.from_dlpack``: no copy), and an action tensor on the
 environment's device is handed to the program as it is (``jax.dlpack.from_dlpack``: no copy). The
 ``info`` dict stays as the gymnasium face builds it (NumPy, from the step's rows on the host). The face
-reaches the rows by wrapping the vector env's ``programs`` (each call passed through, its result kept)
-and lets the vector env's own ``step`` run as it is.
+views the vector env's ``rows`` (the last call's, on the device) and steps it through ``step_checked``
+with the actions it has checked itself.
 
 On the CPU the saving is memory, not time: with a few copies, importing an action through DLPack costs
 more Python than the NumPy face's copy (benchmarks/results/cleanrl_torch_ppo.md); the copies it avoids
@@ -32,8 +32,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import gymnasium
 import jax
@@ -47,45 +46,6 @@ from contextrl.gymnasium.vector import ContextualVectorEnv
 
 # How a row's 32-bit words read as each field's dtype (a bool is its word's first byte).
 _VIEWS = {np.dtype(np.float32): torch.float32, np.dtype(np.int32): torch.int32}
-
-
-class _TappedPrograms:
-    """A vector env's compiled programs, called as they are, keeping each call's packed rows (the JAX
-    array the tensors view) and the actions it was given."""
-
-    def __init__(self, programs: Any):
-        self._programs = programs
-        self.rows: jax.Array | None = None
-        self.actions: Any = None
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._programs, name)
-
-    def reset(self, *args: Any):
-        carry, self.rows = self._programs.reset(*args)
-        return carry, self.rows
-
-    def step(self, carry: jax.Array, actions: Any, table: jax.Array):
-        self.actions = actions
-        carry, self.rows = self._programs.step(carry, actions, table)
-        return carry, self.rows
-
-
-class _Checked(NamedTuple):
-    """Actions the tensor face has checked and placed: the vector env's check lets them through."""
-
-    actions: jax.Array
-
-
-class _CheckUnlessChecked:
-    """The vector env's action check, skipped for :class:`_Checked` actions (anything else handed
-    to the vector env directly is checked as before)."""
-
-    def __init__(self, check: Callable[[Any], Any]):
-        self.check = check
-
-    def __call__(self, actions: Any) -> Any:
-        return actions.actions if isinstance(actions, _Checked) else self.check(actions)
 
 
 def jax_device(device: str | torch.device) -> jax.Device:
@@ -152,12 +112,8 @@ class TorchVectorEnv(gymnasium.vector.VectorWrapper):
         self.jax_device = jax_device(self.device)
         vector = ContextualVectorEnv(name, num_envs, **kwargs)
         super().__init__(vector)
-        # The same programs, run on the device the tensors live on, their rows kept for the views.
-        self._tap = _TappedPrograms(vector.programs)
-        vector.programs = self._tap
+        # The same programs, run on the device the tensors live on.
         vector.table = jax.device_put(vector.table, self.jax_device)
-        self._host_check = vector.check
-        vector.check = _CheckUnlessChecked(vector.check)
         frame = vector.programs.frame
         fields = list(zip(frame.slices, frame.dtypes, frame.shapes, strict=True))
         self._layout = jax.tree_util.tree_unflatten(frame.treedef, fields)
@@ -185,9 +141,9 @@ class TorchVectorEnv(gymnasium.vector.VectorWrapper):
     def _device_actions(self, actions: Any) -> jax.Array:
         """The actions as the program takes them, on its device; refused in one line if invalid."""
         if not isinstance(actions, torch.Tensor):
-            return jax.device_put(self._host_check(actions), self.jax_device)
+            return jax.device_put(self.env.check(actions), self.jax_device)
         if not self._dtypes:  # a space with no tensor rule: the gymnasium face's, on the host
-            return jax.device_put(self._host_check(actions.cpu().numpy()), self.jax_device)
+            return jax.device_put(self.env.check(actions.cpu().numpy()), self.jax_device)
         if (
             actions.dtype not in self._dtypes
             or tuple(actions.shape) != self._action_shape
@@ -219,7 +175,7 @@ class TorchVectorEnv(gymnasium.vector.VectorWrapper):
     def _tensors(self, names: tuple[str, ...]) -> tuple[torch.Tensor, ...]:
         """Fields of every row of the last call's words, as views (no copy): each 32-bit field read
         in its dtype, a bool as its word's first byte."""
-        words = torch.from_dlpack(self._tap.rows)
+        words = torch.from_dlpack(self.env.rows)
         typed: dict[torch.dtype, torch.Tensor] = {}
         fields = []
         for name in names:
@@ -247,7 +203,7 @@ class TorchVectorEnv(gymnasium.vector.VectorWrapper):
     def step(self, actions: Any):
         """One step of every copy: ``(obs, reward, terminated, truncated, info)``, the first four
         tensors; where a copy's episode ended, ``info["final_obs"]`` is a tensor too."""
-        _, _, _, _, info = self.env.step(_Checked(self._device_actions(actions)))
+        _, _, _, _, info = self.env.step_checked(self._device_actions(actions))
         ended = "final_obs" in info
         names = ("obs", "reward", "terminated", "truncated") + (("final_obs",) if ended else ())
         obs, reward, terminated, truncated, *final_obs = self._tensors(names)

@@ -20,14 +20,28 @@ _spec.loader.exec_module(import_graph)
 LENGTHS = [{"length": 0.25}, {"length": 1.0}]
 
 
+def recording(env):
+    """``env`` whose vector env keeps the actions its program was last handed (``env.received``)."""
+    step_checked = env.env.step_checked
+
+    def step(actions):
+        env.received = actions
+        return step_checked(actions)
+
+    env.env.step_checked = step
+    return env
+
+
 @pytest.fixture(scope="module")
 def cartpole():
-    return crl_torch.make_vec("contextrl/CartPole-v0", num_envs=3, contexts=LENGTHS, max_steps=6)
+    return recording(
+        crl_torch.make_vec("contextrl/CartPole-v0", num_envs=3, contexts=LENGTHS, max_steps=6)
+    )
 
 
 @pytest.fixture(scope="module")
 def pendulum():
-    return crl_torch.make_vec("Pendulum", num_envs=2, max_steps=4)
+    return recording(crl_torch.make_vec("Pendulum", num_envs=2, max_steps=4))
 
 
 def offset_of(env, name: str) -> int:
@@ -38,10 +52,10 @@ def offset_of(env, name: str) -> int:
 
 def test_tensors_are_views_of_the_compiled_steps_buffer_and_actions_are_read_in_place(cartpole):
     obs, _ = cartpole.reset(seed=0)
-    assert obs.data_ptr() == cartpole._tap.rows.unsafe_buffer_pointer()
+    assert obs.data_ptr() == cartpole.env.rows.unsafe_buffer_pointer()
     actions = torch.tensor([0, 1, 1], dtype=torch.int32)
     obs, reward, terminated, truncated, _ = cartpole.step(actions)
-    rows = cartpole._tap.rows
+    rows = cartpole.env.rows
     base = rows.unsafe_buffer_pointer()
     assert obs.data_ptr() == base and obs.shape == (3, 4) and obs.dtype == torch.float32
     for name, tensor in [("reward", reward), ("terminated", terminated), ("truncated", truncated)]:
@@ -49,26 +63,26 @@ def test_tensors_are_views_of_the_compiled_steps_buffer_and_actions_are_read_in_
     assert terminated.dtype == truncated.dtype == torch.bool and reward.dtype == torch.float32
     np.testing.assert_array_equal(obs.numpy(), np.asarray(rows)[:, :4].view(np.float32))
     # the int32 actions reached the program as the same memory
-    assert cartpole._tap.actions.unsafe_buffer_pointer() == actions.data_ptr()
+    assert cartpole.received.unsafe_buffer_pointer() == actions.data_ptr()
     cartpole.step(torch.tensor([0, 1, 1]))  # int64 is converted: a new (int32) buffer
-    assert cartpole._tap.actions.dtype == np.int32
+    assert cartpole.received.dtype == np.int32
 
 
 def test_float_actions_are_read_in_place_inside_their_bounds_and_clipped_outside(pendulum):
     pendulum.reset(seed=0)
     inside = torch.tensor([[0.5], [-2.0]])
     pendulum.step(inside)
-    assert pendulum._tap.actions.unsafe_buffer_pointer() == inside.data_ptr()
+    assert pendulum.received.unsafe_buffer_pointer() == inside.data_ptr()
     outside = torch.tensor([[5.0], [-2.0]])
     pendulum.step(outside)
-    assert pendulum._tap.actions.unsafe_buffer_pointer() != outside.data_ptr()
-    np.testing.assert_array_equal(np.asarray(pendulum._tap.actions), [[2.0], [-2.0]])
+    assert pendulum.received.unsafe_buffer_pointer() != outside.data_ptr()
+    np.testing.assert_array_equal(np.asarray(pendulum.received), [[2.0], [-2.0]])
     # JAX on the CPU reads a buffer in place only at a 64-byte-aligned address; elsewhere it copies
     storage = torch.zeros(32)
     for offset, in_place in [(0, True), (1, False), (16, True)]:
         sliced = storage[offset : offset + 2].reshape(2, 1)
         pendulum.step(sliced)
-        assert (pendulum._tap.actions.unsafe_buffer_pointer() == sliced.data_ptr()) == in_place
+        assert (pendulum.received.unsafe_buffer_pointer() == sliced.data_ptr()) == in_place
 
 
 def same(torch_value, numpy_value, where: str):
@@ -113,7 +127,7 @@ def test_the_trajectory_is_the_gymnasium_vector_faces_step_for_step(cartpole):
 
 def test_bad_actions_are_refused_in_one_line_before_the_step_runs(cartpole, pendulum):
     cartpole.reset(seed=0)
-    rows = cartpole._tap.rows
+    rows = cartpole.env.rows
     cases = [
         (torch.ones(3), "a float32 tensor of shape (3,)"),
         (torch.ones(4, dtype=torch.int32), "of shape (4,)"),
@@ -128,7 +142,7 @@ def test_bad_actions_are_refused_in_one_line_before_the_step_runs(cartpole, pend
         assert message.startswith("actions must be 3 integers in [0, 2): an int32 or int64 tensor")
     with pytest.raises(ValueError, match=r"^actions must be 3 integers"):  # the vector env inside
         cartpole.env.step(np.array([0, 5, 1]))  # still checks what is handed to it directly
-    assert cartpole._tap.rows is rows  # nothing ran
+    assert cartpole.env.rows is rows  # nothing ran
     pendulum.reset(seed=0)
     for bad in [torch.tensor([[float("nan")], [0.0]]), torch.zeros(2, 1, dtype=torch.float64)]:
         with pytest.raises(ValueError, match=r"^actions must be finite floats of shape \(2, 1\)"):

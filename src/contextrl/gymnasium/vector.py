@@ -205,6 +205,9 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             if f.kind == "categorical"
         }
         self._carry: jax.Array | None = None  # stays on the device between steps
+        # The last reset's or step's packed rows (a row per copy, laid out by ``programs.frame``),
+        # on the device: what the torch face views without a copy.
+        self.rows: jax.Array | None = None
 
     # ---- host side ------------------------------------------------------------------------------------
     def _user_ids(self, indices: np.ndarray) -> np.ndarray:
@@ -299,8 +302,8 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
             seed = seed[0]
         super().reset(seed=seed)
         key_bits = run_key_bits(self.np_random)
-        self._carry, rows = self.programs.reset(key_bits, self.table, vectors, indices, given)
-        steps = self.programs.frame.unpack_host(np.asarray(rows))
+        self._carry, self.rows = self.programs.reset(key_bits, self.table, vectors, indices, given)
+        steps = self.programs.frame.unpack_host(np.asarray(self.rows))
         self._values = vectors  # the given ones; the others from the set or the steps
         self._update_values(steps, ~given)
         return self._observations(steps.obs), self._info(steps)
@@ -308,8 +311,15 @@ class ContextualVectorEnv(gymnasium.vector.VectorEnv):
     def step(self, actions):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        self._carry, rows = self.programs.step(self._carry, self.check(actions), self.table)
-        steps = self.programs.frame.unpack_host(np.asarray(rows))
+        return self.step_checked(self.check(actions))
+
+    def step_checked(self, actions: jax.Array):
+        """:meth:`step` for actions already checked and placed as the program takes them (an array of
+        the action space's dtype, one row per copy): the torch face's, which checks tensors itself."""
+        if self._carry is None:
+            raise gymnasium.error.ResetNeeded("call reset() before step()")
+        self._carry, self.rows = self.programs.step(self._carry, actions, self.table)
+        steps = self.programs.frame.unpack_host(np.asarray(self.rows))
         done = steps.terminated | steps.truncated
         changed = done if self.changes is None else self._everyone
         if changed.any():
