@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import contextrl as crl
-from contextrl.agents import ppo
+from contextrl.agents import dqn, ppo, sac
 from contextrl.agents.validation import ConfigError
 from contextrl.context import ContextError, Resample, Uniform
 from contextrl.context.curricula import ADR, PLR, EdgeSampler, Feedback, SPaCE, WeightedSet
@@ -173,3 +173,46 @@ def test_a_curriculum_chooses_its_own_contexts():
     train = ppo.make_train(CONFIG, ENV, SPaCE(POOL))
     with pytest.raises(ConfigError, match="trains under a curriculum"):
         train(jax.random.key(0), POOL)
+
+
+def test_off_policy_loops_carry_space_and_adr_and_refuse_plr():
+    """DQN and SAC under a curriculum: a logging period is a rollout. SPaCE with a threshold no change
+    exceeds grows by its step once the learner's start values have a mean, which they have only if
+    the loop hands them over; ADR that widens on any return at an edge only widens."""
+    config = dqn.DQNConfig(
+        total_timesteps=8 * 25 * 5 + 64,
+        num_envs=8,
+        learning_starts=64,
+        log_every=200,
+        batch_size=16,
+        hidden_sizes=(16,),
+        variant="concat_varying",
+    )
+    growing = SPaCE(POOL, initial=2, step=2, threshold=1e9)
+    result = jax.jit(dqn.make_train(config, ENV, growing))(jax.random.key(0))
+    sizes = np.asarray(result.metrics["curriculum"]["size"])
+    np.testing.assert_array_equal(sizes, [2, 2, 4, 6, 6])  # the first update has no last value
+    weights = np.asarray(result.metrics["curriculum"]["weights"])
+    np.testing.assert_array_equal(weights[0], [0.5, 0.5, 0, 0, 0, 0])
+    always = ADR(SPACE, {"length": (0.1, 2.1)}, widen_above=0.0, narrow_below=-1.0, buffer_size=1)
+    result = jax.jit(dqn.make_train(config, ENV, always))(jax.random.key(0))
+    high = np.asarray(result.metrics["curriculum"]["high"])[:, 0]
+    assert high[0] == pytest.approx(0.5) and np.all(np.diff(high) >= 0) and high[-1] > 0.55
+    with pytest.raises(ConfigError, match="plr scores contexts by the positive advantage"):
+        dqn.make_train(config, ENV, PLR(POOL))
+
+    pendulum = crl.make("Pendulum")
+    pool = crl.sample(pendulum, {"g": Uniform(5.0, 15.0)}, 4, jax.random.key(3))
+    warmup, rows = (
+        {"learning_starts": 200, "num_envs": 2},
+        {"total_timesteps": 500, "log_every": 100},
+    )
+    config = sac.SACConfig(
+        **warmup, **rows, hidden_sizes=(8,), batch_size=16, variant="concat_varying"
+    )
+    result = jax.jit(sac.make_train(config, pendulum, SPaCE(pool, threshold=1e9)))(
+        jax.random.key(0)
+    )
+    np.testing.assert_array_equal(result.metrics["curriculum"]["size"], [1, 1, 2])
+    with pytest.raises(ContextError, match="expected PendulumContext, got CartPoleContext"):
+        sac.make_train(config, pendulum, SPaCE(POOL))

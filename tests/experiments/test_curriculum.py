@@ -55,7 +55,8 @@ def test_a_tiny_curriculum_run_reports_differences_computed_from_its_results(tmp
     [
         ({"curricula": ["uniform", "sgd"]}, "curricula: unknown 'sgd'"),
         ({"variants": ["hidden"]}, "SPaCE orders contexts"),
-        ({"agent": "dqn"}, "curricula run in PPO's training loop"),
+        ({"agent": "dqn"}, "PLR scores contexts by the positive advantage"),
+        ({"agent": "random", "curricula": ["uniform", "adr"]}, "curricula run in the compiled"),
         ({"ranges": {"length": [0.05, 9.0]}}, "outside the feature's bounds"),
         ({"curriculum_options": {"plr": {"temperature": 0}}}, "temperature must be"),
         ({"adr_thresholds": [400]}, "adr_thresholds: give"),

@@ -25,6 +25,7 @@ import optax
 from contextrl.agents import offpolicy
 from contextrl.agents.authors import AuthorsSetting
 from contextrl.agents.common import Policy, TrainResult, agent_inputs
+from contextrl.agents.curricula import seen_contexts
 from contextrl.agents.host import HostLearner, train_on_host
 from contextrl.agents.networks import ConditionedMLP, ContextInput
 from contextrl.agents.replay import Replay, transition, transition_example
@@ -301,8 +302,11 @@ def _learner(config: DQNConfig, nets: _Networks):
 
 
 def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, *agent_inputs(config, env, train_contexts, "DQN", host=False))
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable);
+    ``train_contexts`` may be SPaCE or ADR (:mod:`contextrl.context.curricula`)."""
+    nets = _networks(
+        config, *agent_inputs(config, env, seen_contexts(train_contexts), "DQN", host=False)
+    )
     optimizer, act, learn, epsilon_at = _learner(config, nets)
 
     def init(key, params):
@@ -335,6 +339,7 @@ def make_train(config: DQNConfig, env, train_contexts: Any) -> Callable[..., Tra
         init=init,
         update=update,
         row_metrics=lambda losses: {"loss": losses.mean()},
+        value=lambda params, obs, ctx: _q_values(nets, params, obs, ctx)[0].max(axis=-1),
     )
     return offpolicy.make_train(config, env, train_contexts, algorithm)
 

@@ -4,7 +4,9 @@ A run is one JAX function: a warm-up of random actions that fills the replay buf
 updates, each update the algorithm's own mix of vector steps and gradient steps (DQN: ``train_frequency``
 steps, one gradient step; SAC: ``policy_frequency`` rounds of a step and a critic update, one actor
 update); each logging period is one metrics row. The host loop (:mod:`contextrl.agents.host`) follows
-the same schedule, :attr:`OffPolicyConfig.schedule`.
+the same schedule, :attr:`OffPolicyConfig.schedule`. Under a curriculum the logging period is its
+rollout: the period's steps draw from its current distribution, and it is told the period's returns
+(and, for SPaCE, the learner's values of the pool's start states) before the next.
 """
 
 from __future__ import annotations
@@ -23,6 +25,13 @@ from contextrl.agents.common import (
     TrainResult,
     contextual_env_factory,
     num_context_ids,
+)
+from contextrl.agents.curricula import (
+    check_curriculum,
+    curriculum_env,
+    curriculum_of,
+    feedback,
+    refuse_contexts,
 )
 from contextrl.agents.host import HostSchedule
 from contextrl.agents.networks import ContextInput
@@ -139,20 +148,30 @@ class Algorithm:
     init: Callable[[jax.Array, Any], tuple]
     update: Callable[[tuple, World, Step, jax.Array], tuple[tuple, World, Any]]
     row_metrics: Callable[[Any], dict[str, jax.Array]]
+    # ``value(params, obs, context_vector)``: the learner's value of a state (SPaCE's signal)
+    value: Callable[[Any, jax.Array, jax.Array], jax.Array]
 
 
 def make_train(
     config: OffPolicyConfig, env, train_contexts: Any, algorithm: Algorithm
 ) -> Callable[..., TrainResult]:
-    """``train(key, contexts=None, params=None) -> TrainResult`` (pure, jittable) of ``algorithm``."""
-    build_env = contextual_env_factory(env, train_contexts, config.context_selector)
-    num_contexts = num_context_ids(env, train_contexts)
+    """``train(key, contexts=None, params=None) -> TrainResult`` (pure, jittable) of ``algorithm``;
+    ``train_contexts`` may be a curriculum that needs no per-step scores (SPaCE, ADR)."""
+    curriculum = curriculum_of(train_contexts)
+    if curriculum:
+        check_curriculum(curriculum, env, algorithm.name, gives_scores=False)
+        num_contexts = curriculum.num_ids
+    else:
+        build_env = contextual_env_factory(env, train_contexts, config.context_selector)
+        num_contexts = num_context_ids(env, train_contexts)
     space = env.context_space
     num_envs = config.num_envs
     progress = Progress(algorithm.name, config.trained_timesteps, config.progress_every)
 
     def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
-        cenv = build_env(contexts)
+        refuse_contexts(curriculum, contexts)
+        schedule = curriculum.init() if curriculum else None
+        cenv = curriculum_env(env, curriculum, schedule) if curriculum else build_env(contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
         learner = algorithm.init(init_key, params)
         env_state, timestep = cenv.reset_copies(reset_key, num_envs)
@@ -164,19 +183,23 @@ def make_train(
         )
         log = EpisodeLog.create(num_envs, config.episode_log_size, num_contexts)
 
-        def step(world: World, action_fn) -> World:
-            key, action_key = jax.random.split(world.key)
-            context_vector = context_of(world.env_state.context)
-            action = action_fn(world.obs, context_vector, action_key).astype(example.dtype)
-            env_state, timestep = cenv.step_copies(world.env_state, algorithm.to_env(action))
-            steps = world.step + num_envs
-            replay = world.replay.add(transition(world.obs, context_vector, action, timestep))
-            log = world.log.record(
-                timestep.reward, timestep.done, timestep.info["context_id"], steps
-            )
-            return World(env_state, timestep.obs, replay, log, steps, key)
+        def stepper(cenv) -> Step:
+            def step(world: World, action_fn) -> World:
+                key, action_key = jax.random.split(world.key)
+                context_vector = context_of(world.env_state.context)
+                action = action_fn(world.obs, context_vector, action_key).astype(example.dtype)
+                env_state, timestep = cenv.step_copies(world.env_state, algorithm.to_env(action))
+                steps = world.step + num_envs
+                replay = world.replay.add(transition(world.obs, context_vector, action, timestep))
+                log = world.log.record(
+                    timestep.reward, timestep.done, timestep.info["context_id"], steps
+                )
+                return World(env_state, timestep.obs, replay, log, steps, key)
+
+            return step
 
         def random_step(world, _):
+            step = stepper(cenv)
             return step(world, lambda obs, context, key: algorithm.random_action(key)), None
 
         world = World(env_state, timestep.obs, replay, log, jnp.zeros((), jnp.int32), key)
@@ -186,18 +209,39 @@ def make_train(
         )  # warm-up episodes stay in the episode list, not the curve
         world = world._replace(log=log)
 
-        def update(carry, update_index):
-            learner, world, metrics = algorithm.update(*carry, step, update_index)
-            return (learner, world), metrics
-
         def row(carry, row_index):
-            first = row_index * config.updates_per_row
-            carry, metrics = jax.lax.scan(update, carry, first + jnp.arange(config.updates_per_row))
-            learner, world = carry
-            log, row = world.log.close_row(row_index, world.step, progress)
-            return (learner, world._replace(log=log)), {**row, **algorithm.row_metrics(metrics)}
+            learner, world, schedule = carry
+            step = stepper(curriculum_env(env, curriculum, schedule) if curriculum else cenv)
 
-        (learner, world), metrics = jax.lax.scan(row, (learner, world), jnp.arange(config.num_rows))
+            def update(carry, update_index):
+                learner, world, metrics = algorithm.update(*carry, step, update_index)
+                return (learner, world), metrics
+
+            first = row_index * config.updates_per_row
+            (learner, world), metrics = jax.lax.scan(
+                update, (learner, world), first + jnp.arange(config.updates_per_row)
+            )
+            if curriculum:
+                told = feedback(
+                    curriculum,
+                    env,
+                    algorithm.context,
+                    algorithm.value,
+                    learner[0],
+                    world.log,
+                    reset_key,
+                )
+                trace = curriculum.trace(schedule)
+                schedule = curriculum.update(schedule, told)
+            log, row = world.log.close_row(row_index, world.step, progress)
+            row = {**row, **algorithm.row_metrics(metrics)}
+            if curriculum:
+                row["curriculum"] = trace
+            return (learner, world._replace(log=log), schedule), row
+
+        (learner, world, _), metrics = jax.lax.scan(
+            row, (learner, world, schedule), jnp.arange(config.num_rows)
+        )
         return TrainResult(learner[0], {**metrics, "episodes": world.log.episodes()})
 
     return train

@@ -36,6 +36,14 @@ from contextrl.agents.common import (
     contextual_env_factory,
     num_context_ids,
 )
+from contextrl.agents.curricula import (
+    check_curriculum,
+    curriculum_env,
+    curriculum_of,
+    feedback,
+    refuse_contexts,
+    seen_contexts,
+)
 from contextrl.agents.host import HostLearner, HostSchedule, train_on_host
 from contextrl.agents.networks import ConditionedMLP, ContextInput
 from contextrl.agents.validation import (
@@ -44,8 +52,6 @@ from contextrl.agents.validation import (
     check_positive,
     flat_observation_size,
 )
-from contextrl.context.curricula import Curriculum, Feedback
-from contextrl.core.contextual import ContextualEnv
 
 
 @dataclasses.dataclass(frozen=True)
@@ -317,16 +323,13 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
     distribution, the curriculum is updated after each update from the rollout's per-context returns,
     advantages and start values, and ``metrics["curriculum"]`` holds its distribution per update.
     """
-    curriculum = train_contexts if isinstance(train_contexts, Curriculum) else None
-    seen = curriculum.train_contexts if curriculum else train_contexts
-    nets = _networks(config, *agent_inputs(config, env, seen, "PPO", host=False))
+    curriculum = curriculum_of(train_contexts)
+    nets = _networks(
+        config, *agent_inputs(config, env, seen_contexts(train_contexts), "PPO", host=False)
+    )
     space = env.context_space
     if curriculum:
-        if curriculum.space is not space:
-            raise ConfigError(
-                f"the curriculum's contexts belong to {curriculum.space.context_class.__name__}, "
-                f"but {env.name} uses {env.context_type.__name__}"
-            )
+        check_curriculum(curriculum, env, "PPO", gives_scores=True)
         num_contexts = curriculum.num_ids
     else:
         build_env = contextual_env_factory(env, train_contexts, config.context_selector)
@@ -337,45 +340,19 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
     progress = Progress("PPO", num_updates * num_envs * num_steps, config.progress_every)
     context_of = jax.vmap(lambda ctx: nets.context.vector(space, ctx))
 
-    def start_values(params, key):
-        """The critic's value of each pool member's start state (the same start draw every update)."""
-
-        def one(ctx, member):
-            _, start = env.reset(jax.random.fold_in(key, member), ctx)
-            return value(params, start.obs, nets.context.vector(space, ctx))
-
-        pool = curriculum.pool
-        return jax.vmap(one)(pool, jnp.arange(len(pool)))
-
-    def feedback(params, log, advantages, context_ids, key) -> Feedback:
-        ended = log.context_count
+    def positive_advantages(advantages, context_ids):
+        """Each context id's mean positive advantage over the rollout's steps (PLR's score)."""
         slot = jnp.where(context_ids >= 0, context_ids, num_contexts).ravel()
         positive = jnp.maximum(advantages, 0.0).ravel()
         score_sum = jnp.zeros((num_contexts,)).at[slot].add(positive, mode="drop")
         steps = jnp.zeros((num_contexts,)).at[slot].add(1.0, mode="drop")
-        values = (
-            start_values(params, key)
-            if curriculum.needs_start_values
-            else jnp.full((num_contexts,), jnp.nan)
-        )
-        return Feedback(
-            returns=jnp.where(ended > 0, log.context_sum / jnp.maximum(ended, 1), jnp.nan),
-            episodes=ended,
-            scores=jnp.where(steps > 0, score_sum / jnp.maximum(steps, 1.0), jnp.nan),
-            start_values=values,
-        )
+        return jnp.where(steps > 0, score_sum / jnp.maximum(steps, 1.0), jnp.nan)
 
     def train(key, contexts: Any = None, params: Any = None) -> TrainResult:
-        if curriculum and contexts is not None:
-            raise ConfigError(
-                "train(key, contexts): the agent trains under a curriculum, which chooses its "
-                "contexts itself; make one train function per curriculum instead"
-            )
+        refuse_contexts(curriculum, contexts)
         key, init_key, reset_key = jax.random.split(key, 3)
         schedule = curriculum.init() if curriculum else None
-        cenv = (
-            ContextualEnv(env, curriculum.provider(schedule)) if curriculum else build_env(contexts)
-        )
+        cenv = curriculum_env(env, curriculum, schedule) if curriculum else build_env(contexts)
         if params is None:  # given params: continue training them (population-based tuning)
             params = _init_params(nets, config, init_key)
         opt_state = optimizer.init(params)
@@ -398,10 +375,7 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
 
         def update(carry, period):
             params, opt_state, env_state, obs, log, step, key, schedule = carry
-            if curriculum:
-                cenv_now = ContextualEnv(env, curriculum.provider(schedule))
-            else:
-                cenv_now = cenv
+            cenv_now = curriculum_env(env, curriculum, schedule) if curriculum else cenv
             (params, env_state, obs, log, step, key), (rollout, context_ids) = jax.lax.scan(
                 lambda carry, _: env_step(cenv_now, carry),
                 (params, env_state, obs, log, step, key),
@@ -413,7 +387,10 @@ def make_train(config: PPOConfig, env, train_contexts: Any) -> Callable[..., Tra
                 params, opt_state, rollout, last_value, key
             )
             if curriculum:
-                told = feedback(params, log, advantages, context_ids, reset_key)
+                scores = positive_advantages(advantages, context_ids)
+                told = feedback(
+                    curriculum, env, nets.context, value, params, log, reset_key, scores
+                )
                 trace = curriculum.trace(schedule)
                 schedule = curriculum.update(schedule, told)
             log, row = log.close_row(period, step, progress)

@@ -28,6 +28,7 @@ import optax
 from contextrl.agents import offpolicy
 from contextrl.agents.authors import AuthorsSetting
 from contextrl.agents.common import Policy, TrainResult, agent_inputs
+from contextrl.agents.curricula import seen_contexts
 from contextrl.agents.host import HostLearner, train_on_host
 from contextrl.agents.networks import ConditionedMLP, ContextInput
 from contextrl.agents.replay import Replay, transition, transition_example
@@ -313,9 +314,17 @@ def _learner(config: SACConfig, nets: _Networks):
 
 
 def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., TrainResult]:
-    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable)."""
-    nets = _networks(config, *agent_inputs(config, env, train_contexts, "SAC", host=False))
+    """Validate everything now and return ``train(key, contexts=None) -> TrainResult`` (pure, jittable);
+    ``train_contexts`` may be SPaCE or ADR (:mod:`contextrl.context.curricula`)."""
+    nets = _networks(
+        config, *agent_inputs(config, env, seen_contexts(train_contexts), "SAC", host=False)
+    )
     init, critic_update, actor_update = _learner(config, nets)
+
+    def value(params, obs, context_vector):
+        """The twin critics' lesser value of the actor's mean action."""
+        mean, _ = _actor_head(nets, params["actor"], obs, context_vector)
+        return _twin_q(nets, params["critic"], obs, context_vector, jnp.tanh(mean)).min(axis=0)
 
     def update(learner, world, step, update_index):
         """``policy_frequency`` rounds of (one vector step, one critic update), then one actor update."""
@@ -368,6 +377,7 @@ def make_train(config: SACConfig, env, train_contexts: Any) -> Callable[..., Tra
         init=init,
         update=update,
         row_metrics=row_metrics,
+        value=value,
     )
     return offpolicy.make_train(config, env, train_contexts, algorithm)
 

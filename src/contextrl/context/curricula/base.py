@@ -105,6 +105,7 @@ class Curriculum:
 
     name: ClassVar[str]
     needs_start_values: ClassVar[bool] = False
+    needs_scores: ClassVar[bool] = False  # ``Feedback.scores``: per-step advantages (PPO's loop)
 
     @property
     def num_ids(self) -> int:

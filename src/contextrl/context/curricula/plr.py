@@ -43,6 +43,7 @@ class PLR(PoolCurriculum):
     temperature: float = 0.1
     staleness: float = 0.1
     name: ClassVar[str] = "plr"
+    needs_scores: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()

@@ -16,7 +16,7 @@ import jax
 import numpy as np
 import pandas as pd
 
-from contextrl.agents import ppo
+from contextrl.agents import dqn, ppo, sac
 from contextrl.analysis import metrics, plots
 from contextrl.analysis.intervals import FIXED, two_sample_ci
 from contextrl.analysis.report import Section
@@ -82,9 +82,15 @@ class CurriculumSpec(CommonSpec):
 
     def validate(self) -> None:
         super().validate()
-        if self.agent_entry().make_train is not ppo.make_train:
+        if self.agent_entry().make_train not in (ppo.make_train, dqn.make_train, sac.make_train):
             raise SpecError(
-                f"agent: curricula run in PPO's training loop (ppo), got {self.agent!r}"
+                "agent: curricula run in the compiled training loops of PPO, DQN/C51 and SAC "
+                f"(ppo, dqn, c51, sac), got {self.agent!r}"
+            )
+        if "plr" in self.curricula and self.agent_entry().make_train is not ppo.make_train:
+            raise SpecError(
+                "curricula: PLR scores contexts by the positive advantage of a rollout's steps, "
+                f"which only PPO's loop computes; drop plr or train with ppo (agent {self.agent!r})"
             )
         if not self.curricula or len(set(self.curricula)) != len(self.curricula):
             raise SpecError(f"curricula: give distinct names from {list(CURRICULA)}")
