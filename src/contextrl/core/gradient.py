@@ -2,9 +2,11 @@
 
 For a JAX environment whose dynamics are differentiable (``Env.differentiable``), one rollout of a
 fixed number of steps under a fixed key carries the derivative of a policy's return with respect to each
-float context feature, where a sweep needs a grid of rollouts. It runs in forward mode
-(``jax.jacfwd``, one tangent per feature): with the few features of an environment that is cheaper
-than the backward pass of ``jax.grad`` through a scan (``benchmarks/bench_context_gradient.py``).
+float context feature, where a sweep needs a grid of rollouts. Where the environment never
+terminates it runs in reverse mode (``jax.grad``, one backward pass through the scan); where it can
+terminate, in forward mode (``jax.jacfwd``, one tangent per feature), since the backward pass would go
+through the terminating step's fraction at every step: measured in
+``benchmarks/bench_context_gradient.py``.
 
 A termination is a jump: an episode that lasts one step longer collects one more reward, so CartPole's
 return is a step function of its context whose derivative is zero almost everywhere. The rollout
@@ -55,8 +57,19 @@ def context_gradient(
     return_of, values = return_of_context(
         env, policy, context, key=key, horizon=horizon, features=features, params=params
     )
-    gradient = jax.jit(jax.jacfwd(return_of))(values)
+    gradient = jax.jit(differentiated(env, return_of))(values)
     return {name: float(gradient[name]) for name in values}
+
+
+def differentiated(env: Env, return_of: Callable) -> Callable:
+    """The derivative of :func:`return_of_context`'s function as :func:`context_gradient` takes it:
+    reverse mode for an environment that never terminates, forward mode for one that can."""
+    return jax.grad(return_of) if never_terminates(env) else jax.jacfwd(return_of)
+
+
+def never_terminates(env: Env) -> bool:
+    """Whether ``env`` declares no termination (it keeps ``Env.termination_margin``'s None)."""
+    return type(env).termination_margin is Env.termination_margin
 
 
 def return_of_context(

@@ -20,7 +20,7 @@ import pandas as pd
 from contextrl.agents import evaluate, get_agent
 from contextrl.agents.host import HostCollector
 from contextrl.agents.networks import ContextInput, context_input
-from contextrl.core.gradient import return_of_context
+from contextrl.core.gradient import differentiated, return_of_context
 from contextrl.experiments.plan import Plan, context_columns, stack_sets, trial_columns, trial_key
 
 TRAIN_EVAL_CONTEXTS = 16
@@ -110,7 +110,8 @@ def _compiled(spec, variant: str, env, template, tested_on_training: bool, curri
 def _slopes(env, policy, names, episodes):
     """``(params, key) -> {column: value}``: per feature in ``names``, the derivative of the mean
     return over ``episodes`` episodes with respect to its magnitude A (feature = A × default) at the
-    default context, from one forward-mode pass (``gradient.NAME``), and the central difference at
+    default context, from one differentiated pass (``gradient.NAME``; the mode
+    ``contextrl.core.gradient.differentiated`` chooses), and the central difference at
     A = 1 ± ``GRADIENT_STEP`` over the same episodes and draws (``difference.NAME``)."""
     default = env.context_space.default()
     scale = {name: float(getattr(default, name)) for name in names}
@@ -134,7 +135,7 @@ def _slopes(env, policy, names, episodes):
             return jax.vmap(episode)(keys).mean()
 
         ones = {name: jax.numpy.float32(1.0) for name in names}
-        gradient = jax.jacfwd(mean_return)(ones)
+        gradient = differentiated(env, mean_return)(ones)
         # every feature at 1 + step, then every one at 1 - step: one vmapped rollout for all
         moved = np.concatenate([np.eye(len(names)), -np.eye(len(names))]) * GRADIENT_STEP + 1.0
         returns = jax.vmap(mean_return)({n: moved[:, i] for i, n in enumerate(names)})

@@ -187,7 +187,7 @@ def _gradient_section(spec: SensitivitySpec, cells: pd.DataFrame, training) -> S
     text = [
         "The derivative of each agent's mean return over "
         f"{spec.eval_episodes} episodes with respect to each feature's magnitude A at the default "
-        "context (A = 1), from one forward-mode differentiated rollout per episode "
+        "context (A = 1), from one differentiated rollout per episode "
         "(contextrl.core.gradient: the agent's deterministic policy, the episodes' draws held fixed, "
         "the terminating step counted by its part before the threshold), against the sweep's "
         f"{magnitudes} magnitudes × {spec.eval_episodes} episodes of rollouts per feature. "
