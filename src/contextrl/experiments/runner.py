@@ -98,6 +98,9 @@ def open_run(
 
 
 def _create(spec: CommonSpec, out, root) -> RunDir:
+    """The new run directory of a validated ``spec`` (both settings are idempotent)."""
+    xla_cpu_workaround()
+    use_compilation_cache()
     try:
         return RunDir.create(spec, root=root, out=None if out is None else str(out))
     except FileExistsError:
@@ -196,7 +199,7 @@ def run_experiment(
         verbose=options.get("verbose", False),
     )
     if resume is None:
-        run, spec = open_run(spec, out=out, root=root)
+        run = _create(spec, out, root)  # the spec validated above
         if progress:
             print(f"run directory: {run.path}", file=sys.stderr, flush=True)
     if ray_started:
