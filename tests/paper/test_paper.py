@@ -462,6 +462,9 @@ def test_the_docs_results_page_is_what_the_kept_runs_give(monkeypatch):
     gap = page.split("## optgap_pendulum\n")[1].split("\n## ")[0]
     assert "--scale paper --executor ray --address auto" in gap
     assert "contextrl paper run optgap_pendulum --scale paper --batch-size 650" in gap
+    # CartPole's agents near the 500 an episode can return: the ceiling is the cause named
+    visibility = page.split("## baseline_cartpole_visibility\n")[1].split("\n## ")[0]
+    assert "(most likely cause: hidden at the return ceiling (its mean test return " in visibility
     walker = page.split("## visibility_dmcwalker\n")[1].split("\n## ")[0]
     assert "from runs of other agent settings (" in walker and "per training step)" in walker
     assert "--batch-size" not in walker  # dm_control steps on the host

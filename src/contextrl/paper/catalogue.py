@@ -291,7 +291,8 @@ FIGURES = {
                 ),
                 PaperFigure(
                     f"baseline_{env}_visibility",
-                    better_check("concat_varying", "hidden"),
+                    # CartPole: +1 a step, so a return of at most the time limit
+                    better_check("concat_varying", "hidden", 1.0 if env == "cartpole" else None),
                     {
                         **small,
                         "seeds": MIN_SEEDS if env == "lunarlander" else 3,

@@ -395,30 +395,49 @@ def _means(scores: dict, a: str, b: str) -> str:
 
 
 def _difference_check(
-    a: str, b: str, rule: str, decide: Callable[[Interval, float], bool | None], bounds: str
+    a: str,
+    b: str,
+    rule: str,
+    decide: Callable[[Interval, float], bool | None],
+    bounds: str,
+    most_per_step: float | None = None,
 ) -> Check:
     """A claim about mean test return ``a`` − ``b``: ``decide(interval, margin)`` says whether it
     is reproduced, the margin being EQUIVALENCE × the agents' gain (and half and twice that, the
     margin being the library's); ``bounds`` (formatted with ``margin`` and ``gain``) says where the
-    evidence stands against it."""
+    evidence stands against it. ``most_per_step``: the largest reward a step can give, so an
+    episode returns at most that × the time limit; where ``b`` is closer to it than the margin,
+    ``a`` has no room to beat it by the margin, and a claim not reproduced names that cause."""
 
     def check(runs: Mapping[str, RunDir], gain: float) -> Verdict:
         scores, diff, over = _variant_difference(runs, a, b)
         margin = EQUIVALENCE * gain
-        return _over_margins(
+        found = _over_margins(
             lambda scale: decide(diff, scale * margin),
             f"mean test return {a} − {b} = {diff} (95% CI over {over}; "
             + bounds.format(margin=margin, gain=gain)
             + "); "
             + _means(scores, a, b),
         )
+        if most_per_step is None:
+            return found
+        most = most_per_step * next(iter(runs.values())).spec().make_env().max_steps
+        base = metrics.aggregate_mean(scores[b].matrix)
+        if most - base >= margin:
+            return found
+        cause = (
+            f"{b} at the return ceiling (its mean test return {base:.4g} of at most {most:g} "
+            f"leaves {a} less room than the margin {margin:.4g} to beat it by)"
+        )
+        return dataclasses.replace(found, cause=cause)
 
     return Check(f"{rule} {MARGIN_RULE}", check)
 
 
-def better_check(a: str, b: str) -> Check:
+def better_check(a: str, b: str, most_per_step: float | None = None) -> Check:
     """Variant ``a``'s mean test return is above ``b``'s; not better by a meaningful amount when
-    the interval lies below the equivalence margin."""
+    the interval lies below the equivalence margin (``most_per_step``: see
+    :func:`_difference_check`)."""
 
     def decide(diff: Interval, margin: float) -> bool | None:
         return True if diff.low > 0 else (False if diff.high < margin else None)
@@ -429,7 +448,7 @@ def better_check(a: str, b: str) -> Check:
         "at their training contexts (not better by a meaningful amount); undecided otherwise."
     )
     bounds = "reproduced above 0, not reproduced below {margin:.4g}"
-    return _difference_check(a, b, rule, decide, bounds)
+    return _difference_check(a, b, rule, decide, bounds, most_per_step)
 
 
 def similar_check(a: str, b: str) -> Check:
