@@ -172,7 +172,9 @@ _spec.loader.exec_module(divergence)
 def test_host_path_follows_the_compiled_step_over_whole_episodes(name):
     """One episode per row of the divergence benchmark (default, three features drawn ±20 %)."""
     for contexts, seed in [(None, 0), (divergence.drawn_contexts(name), 1)]:
-        (host,), (compiled,) = (divergence.episodes(name, contexts, c, seed, 1) for c in (False, True))
+        (host,), (compiled,) = (
+            divergence.episodes(name, contexts, c, seed, 1) for c in (False, True)
+        )
         assert len(host) == len(compiled)  # the episode ends at the same step, the same way
         assert host[-1][2:] == compiled[-1][2:]
         for field in (0, 1):  # observations, rewards
