@@ -4,7 +4,9 @@ gymnasium vector face (NumPy), with nothing of the script rewritten but its envi
     pip download --no-deps cleanrl==0.4.8 -d /tmp/cleanrl && tar xzf /tmp/cleanrl/cleanrl-0.4.8.tar.gz -C /tmp/cleanrl
     taskset -c 0 python benchmarks/cleanrl_torch_ppo.py \\
         --script /tmp/cleanrl/cleanrl-0.4.8/cleanrl/ppo_continuous_action.py --face torch \\
-        -- --gym-id contextrl/Pendulum-v0 --num-envs 8 --num-steps 256 --total-timesteps 40960
+        -- --gym-id contextrl/Pendulum-v0 --num-envs 4 --num-steps 256 --n-minibatch 16 \\
+        --learning-rate 1e-3 --anneal-lr false --gamma 0.9 --ent-coef 0 --total-timesteps 1000000 \\
+        --cuda false --capture-video false
 
 Nothing is downloaded here: ``--script`` is the path to the user's copy. The script is CleanRL 0.4.8's
 (the version on PyPI; its API is old gym's and stable-baselines3's vector env). Its text is read, the
