@@ -107,8 +107,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=50, help="timed calls of each, alternating")
     args = parser.parse_args()
     start_load = load()
+    envs = {env_id: crl.make(env_id) for env_id in CASES}
     cases = [
-        (env_id, crl.make(env_id), policy, None, crl.make(env_id).context(**context))
+        (env_id, envs[env_id], policy, None, envs[env_id].context(**context))
         for env_id, (policy, context) in CASES.items()
     ]
     cases += [agent_case(env_id) for env_id in AGENTS]

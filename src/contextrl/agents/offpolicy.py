@@ -198,9 +198,10 @@ def make_train(
 
             return step
 
+        warmup_step = stepper(cenv)
+
         def random_step(world, _):
-            step = stepper(cenv)
-            return step(world, lambda obs, context, key: algorithm.random_action(key)), None
+            return warmup_step(world, lambda obs, context, key: algorithm.random_action(key)), None
 
         world = World(env_state, timestep.obs, replay, log, jnp.zeros((), jnp.int32), key)
         world = jax.lax.scan(random_step, world, None, config.warmup_steps)[0]
