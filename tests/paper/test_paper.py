@@ -53,6 +53,8 @@ from contextrl.paper.plans import planned, training_steps
 from contextrl.paper.runs import (
     _add_catalogue_seeds,
     _agent_settings,
+    cpu_model,
+    machines,
     plan_text,
     seconds_per_step,
     wall_seconds,
@@ -203,7 +205,8 @@ def test_the_verdicts_of_the_tiny_runs_are_what_their_returns_give(paper_runs):
         assert check_report(paper_runs / f"{name}-tiny" / name) > 0  # tables = results
     manifest = RunDir(paper_runs / "tabular_cmdp-tiny" / "tabular_cmdp").manifest()
     cores = len(os.sched_getaffinity(0))  # the cores the run could use, as `taskset` leaves them
-    assert manifest["paper_machine"] == f"{cores} CPU core{'s' if cores > 1 else ''}"  # on the page
+    assert manifest["paper_machine"].startswith(f"{cores} CPU core{'s' if cores > 1 else ''}")
+    assert manifest["paper_machines"] == [manifest["paper_machine"]]  # on the page
     # the plan `paper run` prints first: chunks finished and steps left, from the run's own files
     gap_run = RunDir(paper_runs / "optgap_cartpole-tiny" / "optgap_cartpole")
     plan = planned(gap_run.spec())
@@ -385,6 +388,30 @@ def test_the_rate_comes_from_runs_of_the_same_agent_settings_first(tmp_path):
     shutil.rmtree(own.path)
     rate, _ = seconds_per_step(paper, "paper", tmp_path)
     assert rate == wall_seconds(other) / training_steps(other.spec())
+
+
+def test_the_page_names_the_cpu_model_of_every_machine_a_run_trained_on(tmp_path):
+    """Linux's model name and widest vector unit, from /proc/cpuinfo's first processor; a run
+    resumed elsewhere lists both machines, and one kept before machines were listed its last."""
+    cpuinfo = tmp_path / "cpuinfo"
+    first = "model name\t: AMD EPYC\nflags\t\t: fpu sse2 avx avx2\n\n"
+    cpuinfo.write_text(first + "model name\t: other\nflags\t\t: avx512f\n", encoding="utf-8")
+    assert cpu_model(cpuinfo) == "AMD EPYC with AVX2"
+    cpuinfo.write_text("model name\t: Intel Xeon\nflags\t\t: avx2 avx512f\n", encoding="utf-8")
+    assert cpu_model(cpuinfo) == "Intel Xeon with AVX-512"
+    cpuinfo.write_text("processor\t: 0\n", encoding="utf-8")
+    assert cpu_model(cpuinfo) == ""
+    spec = parse_spec(spec_data(FIGURES["tabular_cmdp"], "tabular_cmdp", "tiny"))
+    both, old = (RunDir.create(spec, out=tmp_path / name) for name in ("both", "old"))
+    jax_version = both.manifest()["versions"]["jax"]
+    both.update_manifest(
+        paper_machine="1 CPU core, B", paper_machines=["1 CPU core, A", "1 CPU core, B"]
+    )
+    old.update_manifest(paper_machine="2 CPU cores")
+    assert machines([both, old]) == (
+        f"1 CPU core, A (JAX {jax_version}) and 1 CPU core, B (JAX {jax_version}) and "
+        f"2 CPU cores (JAX {jax_version})"
+    )
 
 
 def test_pb2_members_count_as_an_agent_of_their_own():

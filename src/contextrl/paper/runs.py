@@ -6,6 +6,7 @@ extrapolated."""
 from __future__ import annotations
 
 import dataclasses
+import platform
 import sys
 import time
 from collections.abc import Mapping
@@ -81,11 +82,33 @@ def wall_seconds(run: RunDir) -> float:
 
 
 def machine() -> str:
-    """What trained, for the wall times the page states: JAX's accelerator, else the CPU cores."""
+    """What trained, for the wall times the page states: JAX's accelerator, else the CPU cores, and
+    the CPU's model (the same chunk has taken twice as long on one CPU core as on another)."""
     device = jax.devices()[0]
     count = usable_cores()
     cores = f"{count} CPU core{'s' if count > 1 else ''}"
+    model = cpu_model()
+    cores = f"{cores}, {model}" if model else cores
     return cores if device.platform == "cpu" else f"one {device.device_kind} and {cores}"
+
+
+def cpu_model(cpuinfo: str | Path = "/proc/cpuinfo") -> str:
+    """The CPU's model as Linux names it and its widest vector unit (``AMD EPYC with AVX2``); the
+    platform's processor name where there is no ``/proc/cpuinfo``."""
+    try:
+        lines = Path(cpuinfo).read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return platform.processor()
+    fields = {}
+    for line in lines:
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())
+    name = fields.get("model name", "")
+    if not name:
+        return ""
+    flags = fields.get("flags", "").split()
+    vectors = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else ""
+    return f"{name} with {vectors}" if vectors else name
 
 
 def _new_part(figure: PaperFigure, part: str, scale: str, batch_size: int | None) -> dict:
@@ -136,13 +159,17 @@ def run_figure(
             "progress": progress,
         }
         if resumed:
-            run, _ = run_experiment(resume=path, **options)
+            run, summary = run_experiment(resume=path, **options)
         else:
-            run, _ = run_experiment(data, out=path, **options)
+            run, summary = run_experiment(data, out=path, **options)
         spent = time.perf_counter() - start
+        kept = run.manifest()
+        here = machine()
+        trained_on = set(kept.get("paper_machines", [kept.get("paper_machine", here)]))
         run.update_manifest(
-            paper_wall_seconds=run.manifest().get("paper_wall_seconds", 0.0) + spent,
-            paper_machine=machine(),
+            paper_wall_seconds=kept.get("paper_wall_seconds", 0.0) + spent,
+            paper_machine=here,
+            paper_machines=sorted(trained_on | ({here} if summary.ran else set())),
         )
     runs = finished_runs(figure, root, scale)
     if runs is None:
@@ -199,9 +226,13 @@ def _figure_report(figure: PaperFigure, scale: str, runs: Mapping[str, RunDir], 
 
 
 def machines(runs) -> str:
-    """Where ``runs`` trained, as their manifests say: the machine and JAX's version."""
-    manifests = [run.manifest() for run in runs]
-    named = {f"{m['paper_machine']} (JAX {m['versions']['jax']})" for m in manifests}
+    """Where ``runs`` trained, as their manifests say: every machine that ran some of their chunks
+    (a run kept before machines were listed names the last one) and JAX's version."""
+    named = set()
+    for manifest in (run.manifest() for run in runs):
+        jax_version = manifest["versions"]["jax"]
+        listed = manifest.get("paper_machines", [manifest["paper_machine"]])
+        named |= {f"{where} (JAX {jax_version})" for where in listed}
     return " and ".join(sorted(named))
 
 
@@ -326,8 +357,9 @@ def progress(
 
 def time_left(figure: PaperFigure, parts: list[PartProgress], scale: str, root: str | Path) -> str:
     """The time the parts' steps left should take at the pace of the figure's own finished chunks
-    (this budget, these settings: a host figure's evaluation grows with its episodes' length), else
-    at the rate finished runs of the same agents were measured at."""
+    (this budget, these settings: a host figure's evaluation grows with its episodes' length; the
+    machines named where recorded), else at the rate finished runs of the same agents were
+    measured at."""
     left = sum(p.steps_left for p in parts)
     if not left:
         return "nothing left to train"
@@ -336,7 +368,9 @@ def time_left(figure: PaperFigure, parts: list[PartProgress], scale: str, root: 
     runs = [RunDir(folder / p.part) for p in parts if p.finished]
     if done and runs:
         seconds = sum(wall_seconds(run) for run in runs)
-        return f"≈ {duration(left * seconds / done)} at the pace of its finished chunks"
+        where = machines(run for run in runs if "paper_machine" in run.manifest())
+        on = f" (on {where})" if where else ""
+        return f"≈ {duration(left * seconds / done)} at the pace of its finished chunks{on}"
     rate = seconds_per_step([p.spec for p in parts], scale, root)
     if rate is not None:
         return f"≈ {duration(left * rate[0])} at the rate measured on {rate[1]}"
